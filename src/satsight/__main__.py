@@ -1,0 +1,3 @@
+from satsight.cli import main
+
+main()

@@ -1,0 +1,1 @@
+"""Camera geometry: the pinhole model, its intrinsics and the paper's presets."""

@@ -1,0 +1,1 @@
+"""Pure rotation and rigid-transform math (no rendering, no I/O)."""

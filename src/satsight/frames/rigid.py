@@ -1,0 +1,106 @@
+"""Rigid transforms ``x_a = R_a_from_b @ x_b + t_a_from_b_m`` and the look-at camera pose.
+
+A ``RigidTransform`` named ``cam_from_body`` maps points given in the body (mesh) frame to
+the camera frame. ``a_from_b @ b_from_c`` gives ``a_from_c``: the names cancel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from satsight.errors import SatsightError
+from satsight.frames.quaternion import matrix_from_quaternion, quaternion_from_matrix
+
+
+@dataclass(frozen=True)
+class RigidTransform:
+    """A proper rigid motion from frame b to frame a.
+
+    R_a_from_b: (3, 3) rotation matrix. t_a_from_b_m: (3,) origin of b expressed in a, metres.
+    """
+
+    R_a_from_b: np.ndarray
+    t_a_from_b_m: np.ndarray
+
+    def __post_init__(self) -> None:
+        R = np.asarray(self.R_a_from_b, dtype=np.float64).reshape(3, 3)
+        t = np.asarray(self.t_a_from_b_m, dtype=np.float64).reshape(3)
+        object.__setattr__(self, "R_a_from_b", R)
+        object.__setattr__(self, "t_a_from_b_m", t)
+
+    @classmethod
+    def identity(cls) -> RigidTransform:
+        return cls(np.eye(3), np.zeros(3))
+
+    @classmethod
+    def from_quaternion(cls, q_a_from_b: np.ndarray, t_a_from_b_m: np.ndarray) -> RigidTransform:
+        return cls(matrix_from_quaternion(q_a_from_b), t_a_from_b_m)
+
+    @property
+    def q_a_from_b(self) -> np.ndarray:
+        """Canonical scalar-first quaternion of the rotation part."""
+        return quaternion_from_matrix(self.R_a_from_b)
+
+    def apply(self, points_b_m: np.ndarray) -> np.ndarray:
+        """Transform points (..., 3) from frame b to frame a."""
+        return np.asarray(points_b_m, dtype=np.float64) @ self.R_a_from_b.T + self.t_a_from_b_m
+
+    def rotate(self, vectors_b: np.ndarray) -> np.ndarray:
+        """Rotate free vectors (..., 3), e.g. directions and normals, from b to a."""
+        return np.asarray(vectors_b, dtype=np.float64) @ self.R_a_from_b.T
+
+    def inverse(self) -> RigidTransform:
+        """The b_from_a transform."""
+        R_b_from_a = self.R_a_from_b.T
+        return RigidTransform(R_b_from_a, -R_b_from_a @ self.t_a_from_b_m)
+
+    def __matmul__(self, b_from_c: RigidTransform) -> RigidTransform:
+        """Composition: ``a_from_b @ b_from_c = a_from_c``."""
+        return RigidTransform(
+            self.R_a_from_b @ b_from_c.R_a_from_b,
+            self.R_a_from_b @ b_from_c.t_a_from_b_m + self.t_a_from_b_m,
+        )
+
+    def as_matrix(self) -> np.ndarray:
+        """Homogeneous 4x4 matrix."""
+        M = np.eye(4)
+        M[:3, :3] = self.R_a_from_b
+        M[:3, 3] = self.t_a_from_b_m
+        return M
+
+
+def look_at_cam_from_body(
+    camera_position_body_m: np.ndarray,
+    target_point_body_m: np.ndarray,
+    up_hint_body: np.ndarray = (0.0, 0.0, 1.0),
+    roll_rad: float = 0.0,
+) -> RigidTransform:
+    """Camera pose (OpenCV axes: +x right, +y down, +z boresight) looking at a point.
+
+    The boresight +z points from the camera to ``target_point_body_m``. With zero roll the
+    image "up" (-y) is the projection of ``up_hint_body`` on the image plane; ``roll_rad``
+    then turns the camera about its boresight (positive: right hand about +z). If the hint is
+    parallel to the boresight another axis is used.
+    """
+    c = np.asarray(camera_position_body_m, dtype=np.float64)
+    target = np.asarray(target_point_body_m, dtype=np.float64)
+    forward = target - c
+    dist = np.linalg.norm(forward)
+    if dist <= 0.0:
+        raise SatsightError("camera position coincides with the point it should look at")
+    z = forward / dist
+    up = np.asarray(up_hint_body, dtype=np.float64)
+    for candidate in (up, np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])):
+        up_perp = candidate - np.dot(candidate, z) * z
+        if np.linalg.norm(up_perp) > 1e-6 * max(np.linalg.norm(candidate), 1e-300):
+            break
+    y = -up_perp / np.linalg.norm(up_perp)
+    x = np.cross(y, z)
+    if roll_rad:
+        cr, sr = np.cos(roll_rad), np.sin(roll_rad)
+        x, y = cr * x + sr * y, -sr * x + cr * y
+    R_body_from_cam = np.stack([x, y, z], axis=1)
+    R_cam_from_body = R_body_from_cam.T
+    return RigidTransform(R_cam_from_body, -R_cam_from_body @ c)

@@ -1,0 +1,1 @@
+"""What is being imaged: triangle meshes with parts, materials and procedural satellites."""

@@ -1,0 +1,130 @@
+"""Surface materials in the metallic / roughness / IOR / alpha model (paper section 3.3).
+
+Each material is what the renderer needs to evaluate the paper's GGX model (Eq. 18-20):
+
+* ``kd = (1 - M) * base_color``              diffuse albedo per channel
+* ``ks = M * base_color + (1 - M) * F0``     specular reflectance at normal incidence
+* ``F0 = ((IOR - 1) / (IOR + 1))^2``         Fresnel reflectance of the dielectric part
+* ``alpha_ggx = R^2``                        GGX width from perceptual roughness R
+
+``alpha`` here is the *opacity* of the paper (1 opaque, 0 fully transparent), not the GGX width.
+
+The values of ``FIRST_MATERIALS`` are representative first choices for the part types of
+the paper's IceSat-2 model (section 3.3 and Fig. 11); the only published figure used is
+aluminium's F0 = 0.91 (paper section 3.3). The others are assumptions until the material
+library is fitted to measured BRDF data, and say so in their ``source`` field.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from satsight.errors import SatsightError
+
+
+@dataclass(frozen=True)
+class Material:
+    """A surface material.
+
+    base_color_rgb: linear reflectance per channel in [0, 1]. metallic M and roughness R in
+    [0, 1]. ior: index of refraction >= 1 of the dielectric part (1 gives no specular
+    reflection). alpha: opacity in [0, 1]. source: where the values come from.
+    """
+
+    name: str
+    base_color_rgb: tuple[float, float, float]
+    metallic: float
+    roughness: float
+    ior: float
+    alpha: float = 1.0
+    source: str = "assumed"
+
+    def __post_init__(self) -> None:
+        color = tuple(float(c) for c in self.base_color_rgb)
+        object.__setattr__(self, "base_color_rgb", color)
+        problems = []
+        if len(color) != 3 or not all(0.0 <= c <= 1.0 for c in color):
+            problems.append(f"base_color_rgb must be 3 values in [0, 1], got {color}")
+        for key in ("metallic", "roughness", "alpha"):
+            value = getattr(self, key)
+            if not (0.0 <= value <= 1.0):
+                problems.append(f"{key} must be in [0, 1], got {value}")
+        if not (self.ior >= 1.0 and math.isfinite(self.ior)):
+            problems.append(f"ior must be a finite number >= 1, got {self.ior}")
+        if problems:
+            raise SatsightError(f"material '{self.name}': " + "; ".join(problems))
+
+    @property
+    def f0(self) -> float:
+        """Fresnel reflectance at normal incidence of the dielectric part, ((n-1)/(n+1))^2."""
+        return ((self.ior - 1.0) / (self.ior + 1.0)) ** 2
+
+    @property
+    def kd_rgb(self) -> np.ndarray:
+        """Diffuse albedo (1 - M) * base colour (paper Eq. 18)."""
+        return (1.0 - self.metallic) * np.asarray(self.base_color_rgb)
+
+    @property
+    def ks_rgb(self) -> np.ndarray:
+        """Specular reflectance at normal incidence M * base + (1 - M) * F0 (paper Eq. 18)."""
+        return self.metallic * np.asarray(self.base_color_rgb) + (1.0 - self.metallic) * self.f0
+
+    @property
+    def alpha_ggx(self) -> float:
+        """GGX distribution width alpha = R^2 (paper Eq. 19)."""
+        return self.roughness**2
+
+
+def _m(name, rgb, metallic, roughness, ior, alpha=1.0, source="assumed"):
+    return Material(name, rgb, metallic, roughness, ior, alpha, source)
+
+
+FIRST_MATERIALS: dict[str, Material] = {
+    m.name: m
+    for m in [
+        _m("mli_gold", (0.80, 0.56, 0.22), 0.85, 0.35, 1.70),
+        _m("mli_silver", (0.90, 0.90, 0.88), 0.90, 0.30, 1.70),
+        _m("solar_cell", (0.05, 0.07, 0.20), 0.0, 0.12, 1.52),
+        _m("panel_substrate", (0.30, 0.30, 0.32), 0.2, 0.60, 1.50),
+        _m("white_paint", (0.85, 0.85, 0.82), 0.0, 0.80, 1.50),
+        _m("black_crinkle", (0.03, 0.03, 0.03), 0.0, 0.90, 1.50),
+        _m("black_metal", (0.05, 0.05, 0.05), 1.0, 0.45, 1.50),
+        _m(
+            "brushed_aluminium",
+            (0.91, 0.92, 0.92),
+            1.0,
+            0.30,
+            1.50,
+            source="F0 = 0.91 of aluminium: paper section 3.3; roughness assumed",
+        ),
+        _m("titanium_hinge", (0.54, 0.50, 0.45), 1.0, 0.40, 1.50),
+        _m("optical_lens", (0.02, 0.02, 0.03), 0.0, 0.02, 1.46),
+        _m("cfrp", (0.05, 0.05, 0.05), 0.0, 0.50, 1.60),
+        _m("instrument_grey", (0.45, 0.45, 0.45), 0.3, 0.50, 1.50),
+        _m("antenna_white", (0.80, 0.80, 0.78), 0.0, 0.70, 1.50),
+        _m(
+            "lambert_white",
+            (1.0, 1.0, 1.0),
+            0.0,
+            1.0,
+            1.0,
+            source="ideal Lambertian reflector: IOR 1 gives F0 = 0, so no specular lobe",
+        ),
+    ]
+}
+
+DEFAULT_MATERIAL_NAME = "instrument_grey"
+
+
+def resolve_material(name: str, library: dict[str, Material] | None = None) -> Material:
+    """Look a material up by name, with a message listing the known ones when missing."""
+    lib = FIRST_MATERIALS if library is None else library
+    try:
+        return lib[name]
+    except KeyError:
+        raise SatsightError(
+            f"unknown material '{name}'; known materials: {', '.join(sorted(lib))}"
+        ) from None

@@ -1,0 +1,162 @@
+"""The target as the renderer sees it: one triangle mesh in the body frame, split in parts.
+
+Every triangle belongs to exactly one part; every part has a name and a material. In
+masks and labels a part is identified by ``part_id = index + 1`` (0 is background).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from satsight.errors import SatsightError
+from satsight.scene.materials import FIRST_MATERIALS, Material
+
+
+@dataclass(frozen=True)
+class TargetMesh:
+    """A triangulated target in its body frame.
+
+    vertices_m: (N, 3) float64 positions in the body (mesh) frame, metres.
+    faces: (M, 3) int64 vertex indices, counter-clockwise seen from outside.
+    face_part_index: (M,) int32 index into ``part_names`` for each triangle.
+    part_names: one name per part. part_materials: the material name of each part.
+    materials: material definitions, by name (at least those the parts use).
+    """
+
+    vertices_m: np.ndarray
+    faces: np.ndarray
+    face_part_index: np.ndarray
+    part_names: tuple[str, ...]
+    part_materials: tuple[str, ...]
+    materials: Mapping[str, Material] = field(default_factory=lambda: dict(FIRST_MATERIALS))
+    name: str = "target"
+
+    def __post_init__(self) -> None:
+        v = np.ascontiguousarray(self.vertices_m, dtype=np.float64)
+        f = np.ascontiguousarray(self.faces, dtype=np.int64)
+        p = np.ascontiguousarray(self.face_part_index, dtype=np.int32)
+        object.__setattr__(self, "vertices_m", v)
+        object.__setattr__(self, "faces", f)
+        object.__setattr__(self, "face_part_index", p)
+        object.__setattr__(self, "part_names", tuple(self.part_names))
+        object.__setattr__(self, "part_materials", tuple(self.part_materials))
+        self._validate()
+
+    def _validate(self) -> None:
+        v, f, p = self.vertices_m, self.faces, self.face_part_index
+        where = f"mesh '{self.name}'"
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+            raise SatsightError(f"{where} has no vertices (expected an (N, 3) array)")
+        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            raise SatsightError(f"{where} has no triangles; nothing to render")
+        if not np.all(np.isfinite(v)):
+            raise SatsightError(f"{where} has non-finite vertex positions")
+        if f.min() < 0 or f.max() >= len(v):
+            raise SatsightError(f"{where} has face indices outside 0..{len(v) - 1}")
+        if p.shape != (len(f),):
+            raise SatsightError(f"{where}: face_part_index must have one entry per triangle")
+        if len(self.part_names) != len(self.part_materials):
+            raise SatsightError(f"{where}: one material name is needed per part")
+        if len(self.part_names) == 0 or p.min() < 0 or p.max() >= len(self.part_names):
+            raise SatsightError(f"{where}: triangles refer to parts that do not exist")
+        missing = sorted(set(self.part_materials) - set(self.materials))
+        if missing:
+            raise SatsightError(
+                f"{where}: parts use materials with no definition: {', '.join(missing)}"
+            )
+        e1 = v[f[:, 1]] - v[f[:, 0]]
+        e2 = v[f[:, 2]] - v[f[:, 0]]
+        if not np.any(np.linalg.norm(np.cross(e1, e2), axis=1) > 0):
+            raise SatsightError(f"{where}: every triangle is degenerate (zero area)")
+
+    # --- geometry ------------------------------------------------------------------------
+    @property
+    def bounds_m(self) -> np.ndarray:
+        """Axis-aligned bounding box in the body frame, (2, 3): [min, max]."""
+        return np.stack([self.vertices_m.min(axis=0), self.vertices_m.max(axis=0)])
+
+    @property
+    def center_m(self) -> np.ndarray:
+        """Centre of the axis-aligned bounding box, body frame (3,)."""
+        return self.bounds_m.mean(axis=0)
+
+    @property
+    def extent_m(self) -> np.ndarray:
+        """Side lengths of the bounding box (3,)."""
+        b = self.bounds_m
+        return b[1] - b[0]
+
+    @property
+    def bounding_radius_m(self) -> float:
+        """Radius of the sphere about ``center_m`` that holds every vertex."""
+        return float(np.linalg.norm(self.vertices_m - self.center_m, axis=1).max())
+
+    @property
+    def keypoints_body_m(self) -> np.ndarray:
+        """The 8 bounding-box corners then the box centre, (9, 3), body frame.
+
+        Corner k has x from bit 0, y from bit 1, z from bit 2 of k (0: min, 1: max).
+        """
+        b = self.bounds_m
+        corners = np.array(
+            [[b[(k >> 0) & 1, 0], b[(k >> 1) & 1, 1], b[(k >> 2) & 1, 2]] for k in range(8)]
+        )
+        return np.vstack([corners, self.center_m])
+
+    @property
+    def part_ids(self) -> np.ndarray:
+        """Per-triangle part id as written in masks: part index + 1 (0 is background)."""
+        return self.face_part_index.astype(np.int32) + 1
+
+    def part_material(self, part_index: int) -> Material:
+        return self.materials[self.part_materials[part_index]]
+
+    def summary(self) -> dict:
+        """Parts, materials and counts, for manifests and labels."""
+        counts = np.bincount(self.face_part_index, minlength=len(self.part_names))
+        return {
+            "name": self.name,
+            "vertex_count": len(self.vertices_m),
+            "triangle_count": len(self.faces),
+            "bounds_m": self.bounds_m.tolist(),
+            "parts": [
+                {"part_id": i + 1, "name": n, "material": m, "triangle_count": int(c)}
+                for i, (n, m, c) in enumerate(
+                    zip(self.part_names, self.part_materials, counts, strict=True)
+                )
+            ],
+        }
+
+
+def merge_parts(
+    parts: Sequence[tuple[str, str, np.ndarray, np.ndarray]],
+    materials: Mapping[str, Material] | None = None,
+    name: str = "target",
+) -> TargetMesh:
+    """Build a TargetMesh from (part_name, material_name, vertices_m (N,3), faces (M,3)).
+
+    Parts with the same name are kept as separate parts; give unique names for unique ids.
+    """
+    if not parts:
+        raise SatsightError(f"mesh '{name}' has no parts")
+    verts, faces, index = [], [], []
+    offset = 0
+    for k, (_, _, v, f) in enumerate(parts):
+        v = np.asarray(v, dtype=np.float64)
+        f = np.asarray(f, dtype=np.int64)
+        verts.append(v)
+        faces.append(f + offset)
+        index.append(np.full(len(f), k, dtype=np.int32))
+        offset += len(v)
+    return TargetMesh(
+        vertices_m=np.concatenate(verts),
+        faces=np.concatenate(faces),
+        face_part_index=np.concatenate(index),
+        part_names=tuple(p[0] for p in parts),
+        part_materials=tuple(p[1] for p in parts),
+        materials=dict(FIRST_MATERIALS if materials is None else materials),
+        name=name,
+    )
