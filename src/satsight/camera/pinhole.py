@@ -22,6 +22,20 @@ import numpy as np
 from satsight.errors import SatsightError
 
 
+def _is_whole_number(value: object) -> bool:
+    try:
+        return not isinstance(value, bool) and float(value).is_integer()  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+
+
+def _check_last_axis(name: str, array: np.ndarray, n: int) -> None:
+    if array.shape[-1:] != (n,):
+        raise SatsightError(
+            f"{name} needs {n} components on the last axis; got shape {array.shape}"
+        )
+
+
 @dataclass(frozen=True)
 class PinholeCamera:
     """An ideal pinhole camera.
@@ -43,9 +57,12 @@ class PinholeCamera:
             raise SatsightError(f"focal length must be positive, got {self.focal_length_m} m")
         if not (self.pixel_pitch_m > 0 and math.isfinite(self.pixel_pitch_m)):
             raise SatsightError(f"pixel pitch must be positive, got {self.pixel_pitch_m} m")
-        if int(self.width_px) < 1 or int(self.height_px) < 1:
+        if not (_is_whole_number(self.width_px) and _is_whole_number(self.height_px)) or (
+            int(self.width_px) < 1 or int(self.height_px) < 1
+        ):
             raise SatsightError(
-                f"image size must be at least 1 x 1 px, got {self.width_px} x {self.height_px}"
+                "image size must be whole numbers of pixels, at least 1 x 1; "
+                f"got {self.width_px} x {self.height_px}"
             )
         object.__setattr__(self, "width_px", int(self.width_px))
         object.__setattr__(self, "height_px", int(self.height_px))
@@ -125,6 +142,7 @@ class PinholeCamera:
         Points at or behind the camera (Z <= 0) give NaN.
         """
         p = np.asarray(points_cam_m, dtype=np.float64)
+        _check_last_axis("points_cam_m", p, 3)
         z = p[..., 2]
         with np.errstate(divide="ignore", invalid="ignore"):
             u = self.focal_length_px * p[..., 0] / z + self.cx_px
@@ -136,6 +154,7 @@ class PinholeCamera:
     def backproject(self, pixels_px: np.ndarray, depth_m: np.ndarray) -> np.ndarray:
         """Points (N, 3) in the camera frame from pixels (N, 2) and depth along +z (N,)."""
         uv = np.asarray(pixels_px, dtype=np.float64)
+        _check_last_axis("pixels_px", uv, 2)
         z = np.asarray(depth_m, dtype=np.float64)
         x = (uv[..., 0] - self.cx_px) / self.focal_length_px * z
         y = (uv[..., 1] - self.cy_px) / self.focal_length_px * z

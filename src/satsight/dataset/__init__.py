@@ -1,0 +1,1 @@
+"""Labels and files: what a dataset holds and how it is written."""

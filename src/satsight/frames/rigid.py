@@ -6,12 +6,15 @@ the camera frame. ``a_from_b @ b_from_c`` gives ``a_from_c``: the names cancel.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from satsight.errors import SatsightError
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_from_matrix
+
+_ROTATION_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -25,8 +28,20 @@ class RigidTransform:
     t_a_from_b_m: np.ndarray
 
     def __post_init__(self) -> None:
-        R = np.asarray(self.R_a_from_b, dtype=np.float64).reshape(3, 3)
-        t = np.asarray(self.t_a_from_b_m, dtype=np.float64).reshape(3)
+        R = np.asarray(self.R_a_from_b, dtype=np.float64)
+        t = np.asarray(self.t_a_from_b_m, dtype=np.float64)
+        if R.shape != (3, 3) or t.shape != (3,):
+            raise SatsightError(
+                f"a rigid transform needs R_a_from_b of shape (3, 3) and t_a_from_b_m of shape "
+                f"(3,); got {R.shape} and {t.shape}"
+            )
+        if not np.all(np.isfinite(t)):
+            raise SatsightError(f"t_a_from_b_m must be finite; got {t}")
+        if not (np.allclose(R.T @ R, np.eye(3), atol=_ROTATION_TOLERANCE) and np.linalg.det(R) > 0):
+            raise SatsightError(
+                "R_a_from_b is not a proper rotation (R^T R != I or det(R) != +1 to 1e-6); "
+                "build it with matrix_from_quaternion or scipy's Rotation"
+            )
         object.__setattr__(self, "R_a_from_b", R)
         object.__setattr__(self, "t_a_from_b_m", t)
 
@@ -86,12 +101,24 @@ def look_at_cam_from_body(
     """
     c = np.asarray(camera_position_body_m, dtype=np.float64)
     target = np.asarray(target_point_body_m, dtype=np.float64)
+    up = np.asarray(up_hint_body, dtype=np.float64)
+    for name, v in (
+        ("camera_position_body_m", c),
+        ("target_point_body_m", target),
+        ("up_hint_body", up),
+    ):
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise SatsightError(f"{name} must be 3 finite numbers; got {v!r}")
+    if not math.isfinite(roll_rad):
+        raise SatsightError(f"roll_rad must be finite; got {roll_rad}")
     forward = target - c
     dist = np.linalg.norm(forward)
     if dist <= 0.0:
-        raise SatsightError("camera position coincides with the point it should look at")
+        raise SatsightError(
+            "camera position coincides with the point it should look at; place the camera "
+            "at a non-zero distance from the target"
+        )
     z = forward / dist
-    up = np.asarray(up_hint_body, dtype=np.float64)
     for candidate in (up, np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])):
         up_perp = candidate - np.dot(candidate, z) * z
         if np.linalg.norm(up_perp) > 1e-6 * max(np.linalg.norm(candidate), 1e-300):

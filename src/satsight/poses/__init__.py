@@ -1,0 +1,1 @@
+"""Where the camera is relative to the target for each frame."""

@@ -1,0 +1,116 @@
+"""Render-stage benchmark: median seconds per frame at several image sizes (JSON).
+
+The target (a procedural ``two_wings`` satellite) is placed so that it covers about half
+of the frame, as the issue's figure asks. Each size renders one warm-up frame (which
+includes JIT compilation) and then ``frames`` timed frames from different azimuths, so
+per-frame values change and any kernel recompilation would show in the timings.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import resource
+import statistics
+import time
+
+import numpy as np
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.poses.views import View
+from satsight.render.buffers import SunLight
+from satsight.render.direct import DirectRenderer
+from satsight.scene.procedural import generate_satellite
+
+DEFAULT_SIZES_PX = ((1024, 1024), (2048, 2048), (4096, 4112))
+TARGET_COVERAGE = 0.5
+_SUN = SunLight(np.array([0.5, -0.4, 0.75]), 671.5)
+
+
+def _view(distance_m: float, k: int) -> View:
+    return View(distance_m, math.radians(-70.0 + 7.0 * k), math.radians(25.0))
+
+
+def _distance_for_coverage(renderer: DirectRenderer, camera: PinholeCamera) -> float:
+    """Distance at which the target covers about TARGET_COVERAGE of the frame."""
+    probe_side = 256
+    scale = max(camera.width_px, camera.height_px) / probe_side
+    probe = PinholeCamera(
+        camera.focal_length_m,
+        camera.pixel_pitch_m * scale,
+        max(1, round(camera.width_px / scale)),
+        max(1, round(camera.height_px / scale)),
+    )
+    radius = renderer.mesh.bounding_radius_m
+    distance = 2.0 * radius / (probe.sensor_width_m / probe.focal_length_m)
+    for _ in range(6):
+        image = renderer.render(
+            probe, _view(distance, 0).cam_from_body(renderer.mesh.center_m), _SUN
+        )
+        fraction = max(image.object_mask.mean(), 1e-4)
+        distance *= math.sqrt(fraction / TARGET_COVERAGE)
+    return distance
+
+
+def run_render_benchmark(sizes_px=DEFAULT_SIZES_PX, frames: int = 5, variant: str = "auto") -> dict:
+    """Time the direct-light render stage; returns a JSON-ready dict."""
+    mesh = generate_satellite("two_wings", seed=1)
+    t0 = time.perf_counter()
+    renderer = DirectRenderer(mesh, variant)
+    setup_s = time.perf_counter() - t0
+    results = []
+    for width, height in sizes_px:
+        camera = PinholeCamera.high_resolution().with_size(width, height)
+        distance = _distance_for_coverage(renderer, camera)
+        times, coverage = [], []
+        for k in range(frames + 1):
+            pose = _view(distance, k).cam_from_body(mesh.center_m)
+            start = time.perf_counter()
+            image = renderer.render(camera, pose, _SUN)
+            times.append(time.perf_counter() - start)
+            coverage.append(float(image.object_mask.mean()))
+        median = statistics.median(times[1:])
+        results.append(
+            {
+                "stage": "render_direct_sun",
+                "width_px": width,
+                "height_px": height,
+                "frames_timed": frames,
+                "median_s": median,
+                "min_s": min(times[1:]),
+                "max_s": max(times[1:]),
+                "first_frame_s": times[0],
+                "jit_warmup_s": max(0.0, times[0] - median),
+                "primary_rays_per_s": width * height / median,
+                "target_coverage_mean": statistics.fmean(coverage[1:]),
+                "distance_m": distance,
+            }
+        )
+    return {
+        "benchmark": "render",
+        "variant": renderer.variant,
+        "machine": {"cpu_count": _cpu_count(), "platform": platform.platform()},
+        "target": {"name": mesh.name, "triangles": len(mesh.faces)},
+        "renderer_setup_s": setup_s,
+        "results": results,
+        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+    }
+
+
+def _cpu_count() -> int:
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+
+
+def main(argv: list[str] | None = None) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=5, help="timed frames per size (>= 5)")
+    parser.add_argument("--variant", default="auto")
+    parser.add_argument("--sizes", default="1024x1024,2048x2048,4096x4112")
+    args = parser.parse_args(argv)
+    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+    print(json.dumps(run_render_benchmark(sizes, args.frames, args.variant), indent=2))

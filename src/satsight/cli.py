@@ -1,0 +1,165 @@
+"""Command line: ``satsight demo | generate | bench | satellite``.
+
+A thin shell over ``satsight.pipeline``: user errors print a message and exit with status 2,
+never a traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from importlib import resources
+from pathlib import Path
+
+import click
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from satsight.errors import SatsightError
+
+console = Console(stderr=True)
+
+
+def example_scenario_path() -> Path:
+    """Path of the bundled example scenario."""
+    return Path(str(resources.files("satsight") / "examples" / "first_light.yaml"))
+
+
+def _generate(config_path: Path, out_dir: Path, overwrite: bool) -> None:
+    from satsight.config.scenario import load_scenario
+    from satsight.pipeline import run_scenario
+
+    scenario = load_scenario(config_path)
+    console.print(
+        f"[bold]satsight[/bold]: scenario '{scenario.name}', {len(scenario.frames)} frames"
+    )
+    with Progress(
+        TextColumn("rendering"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=False,
+    ) as progress:
+        task = progress.add_task("frames", total=len(scenario.frames))
+        summary = run_scenario(
+            scenario,
+            out_dir,
+            overwrite=overwrite,
+            on_frame_done=lambda done, total: progress.update(task, completed=done),
+        )
+    times = sorted(summary.render_seconds)
+    median = times[len(times) // 2]
+    console.print(
+        f"wrote {summary.frame_count} frames to {summary.out_dir} "
+        f"({summary.variant}; render median {median:.3f} s/frame, "
+        f"total {summary.total_seconds:.1f} s)"
+    )
+    console.print(f"look first at {summary.out_dir / 'contact_sheet.png'}")
+
+
+@click.group()
+@click.version_option(package_name="satsight")
+def cli() -> None:
+    """satsight: physically based optical images of space objects with exact labels."""
+
+
+@cli.command()
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    default=Path("out/demo"),
+    show_default=True,
+    help="output folder",
+)
+@click.option("--overwrite", is_flag=True, help="replace the output folder if it exists")
+def demo(out_dir: Path, overwrite: bool) -> None:
+    """Render the bundled example scenario."""
+    _generate(example_scenario_path(), out_dir, overwrite)
+
+
+@cli.command()
+@click.argument("config", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="output folder (created; must be empty unless --overwrite)",
+)
+@click.option("--overwrite", is_flag=True, help="replace the output folder if it exists")
+def generate(config: Path, out_dir: Path, overwrite: bool) -> None:
+    """Render the scenario in CONFIG (YAML) into a dataset folder."""
+    _generate(config, out_dir, overwrite)
+
+
+@cli.command()
+@click.option(
+    "--frames",
+    default=5,
+    show_default=True,
+    type=click.IntRange(min=5),
+    help="timed frames per size",
+)
+@click.option(
+    "--sizes",
+    default="1024x1024,2048x2048,4096x4112",
+    show_default=True,
+    help="comma-separated WIDTHxHEIGHT list",
+)
+@click.option(
+    "--variant",
+    default="auto",
+    show_default=True,
+    type=click.Choice(["auto", "llvm_ad_rgb", "cuda_ad_rgb"]),
+)
+def bench(frames: int, sizes: str, variant: str) -> None:
+    """Time the render stage; prints JSON with median seconds per frame."""
+    from satsight.benchmark import run_render_benchmark
+
+    try:
+        parsed = [tuple(int(v) for v in s.lower().split("x")) for s in sizes.split(",")]
+        if any(len(p) != 2 or min(p) < 1 for p in parsed):
+            raise ValueError
+    except ValueError:
+        raise SatsightError(f"--sizes must look like 1024x1024,4096x4112; got '{sizes}'") from None
+    click.echo(json.dumps(run_render_benchmark(parsed, frames, variant), indent=2))
+
+
+@cli.command()
+@click.argument("satellite_class")
+@click.option("--seed", default=0, show_default=True, type=int)
+@click.option(
+    "--out",
+    "out_path",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="OBJ file to write (an .mtl is written beside it)",
+)
+def satellite(satellite_class: str, seed: int, out_path: Path) -> None:
+    """Write a procedural satellite of SATELLITE_CLASS as OBJ + MTL."""
+    from satsight.scene.obj_export import write_obj
+    from satsight.scene.procedural import generate_satellite
+
+    mesh = generate_satellite(satellite_class, seed)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    obj, mtl = write_obj(mesh, out_path)
+    console.print(
+        f"wrote {obj} and {mtl}: {len(mesh.part_names)} parts, {len(mesh.faces)} triangles"
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``satsight`` command."""
+    try:
+        cli.main(args=argv, standalone_mode=False)
+    except click.exceptions.Abort:
+        console.print("aborted")
+        sys.exit(130)
+    except click.ClickException as error:
+        error.show()
+        sys.exit(error.exit_code)
+    except SatsightError as error:
+        console.print(f"[red]error:[/red] {error}", highlight=False)
+        sys.exit(2)

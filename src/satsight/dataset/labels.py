@@ -1,0 +1,69 @@
+"""Per-frame labels: pose, intrinsics, sun, range, box, keypoints, visible fraction.
+
+Every label is computed from the exact pose and intrinsics used to render the frame, not
+from the images, except the 2D box and pixel counts which come from the object mask.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.frames.rigid import RigidTransform
+from satsight.render.buffers import RadianceImage, SunLight
+from satsight.scene.mesh import TargetMesh
+
+
+def mask_bbox_xyxy_px(mask: np.ndarray) -> list[int] | None:
+    """Tight box [x_min, y_min, x_max, y_max] (inclusive pixel indices) of a mask, or None."""
+    ys = np.flatnonzero(mask.any(axis=1))
+    if ys.size == 0:
+        return None
+    xs = np.flatnonzero(mask.any(axis=0))
+    return [int(xs[0]), int(ys[0]), int(xs[-1]), int(ys[-1])]
+
+
+def frame_labels(
+    mesh: TargetMesh,
+    camera: PinholeCamera,
+    cam_from_body: RigidTransform,
+    sun: SunLight,
+    image: RadianceImage,
+) -> dict:
+    """The label record of one rendered frame (JSON-ready).
+
+    Keys: q_cam_from_body (scalar-first), t_cam_from_body_m, K, image_size_px [W, H],
+    sun_direction_cam (unit, towards the Sun), sun_irradiance_w_m2, range_m (camera to
+    body origin), range_to_center_m (to the bounding-box centre), phase_angle_deg
+    (Sun-target-camera angle at the box centre), bbox_xyxy_px (from the object mask),
+    keypoints_px (projected bounding-box corners then centre, see
+    ``TargetMesh.keypoints_body_m``), keypoints_depth_m, object_pixel_count,
+    visible_pixel_fraction (object pixels / image pixels), truncated (mask touches
+    the image border).
+    """
+    mask = image.object_mask
+    keypoints_cam = cam_from_body.apply(mesh.keypoints_body_m)
+    keypoints_px = camera.project(keypoints_cam)
+    center_cam = cam_from_body.apply(mesh.center_m)
+    to_camera = -center_cam / np.linalg.norm(center_cam)
+    sun_cam = cam_from_body.rotate(sun.direction_body)
+    phase = np.degrees(np.arccos(np.clip(np.dot(to_camera, sun_cam), -1.0, 1.0)))
+    count = int(mask.sum())
+    border = mask[0, :].any() or mask[-1, :].any() or mask[:, 0].any() or mask[:, -1].any()
+    return {
+        "q_cam_from_body": cam_from_body.q_a_from_b.tolist(),
+        "t_cam_from_body_m": cam_from_body.t_a_from_b_m.tolist(),
+        "K": camera.K.tolist(),
+        "image_size_px": [camera.width_px, camera.height_px],
+        "sun_direction_cam": sun_cam.tolist(),
+        "sun_irradiance_w_m2": float(sun.irradiance_w_m2),
+        "range_m": float(np.linalg.norm(cam_from_body.t_a_from_b_m)),
+        "range_to_center_m": float(np.linalg.norm(center_cam)),
+        "phase_angle_deg": float(phase),
+        "bbox_xyxy_px": mask_bbox_xyxy_px(mask),
+        "keypoints_px": keypoints_px.tolist(),
+        "keypoints_depth_m": keypoints_cam[:, 2].tolist(),
+        "object_pixel_count": count,
+        "visible_pixel_fraction": count / mask.size,
+        "truncated": bool(border),
+    }

@@ -1,0 +1,65 @@
+"""Writes one frame's files and the dataset's labels.json.
+
+Layout of a dataset folder (frame index k as six digits)::
+
+    images/frame_k.png          16-bit RGB radiance scaled to the frame's maximum
+    radiance/frame_k.exr        float32 radiance, W m^-2 sr^-1 (channels R, G, B)
+    depth/frame_k.exr           float32 depth along +z_cam in metres (channel Z), 0 = none
+    normals/frame_k.exr         float32 unit normals in the camera frame (X, Y, Z)
+    masks/frame_k_object.png    8-bit object mask (255 = target)
+    masks/frame_k_parts.png     16-bit part ids (0 = background, part index + 1)
+    labels.json                 camera, target, conventions and per-frame labels
+    model/target.obj (+ .mtl)   the target mesh in its body frame, metres
+    contact_sheet.png           thumbnails of every frame
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from satsight.dataset.image_files import write_exr, write_png8, write_png16
+from satsight.dataset.preview import radiance_to_uint16
+from satsight.render.buffers import RadianceImage
+
+FRAME_FOLDERS = ("images", "radiance", "depth", "normals", "masks")
+LABELS_FORMAT = "satsight-labels"
+LABELS_VERSION = 1
+
+
+def frame_stem(index: int) -> str:
+    return f"frame_{index:06d}"
+
+
+def write_frame(root: Path, index: int, image: RadianceImage) -> dict:
+    """Write the image files of frame ``index`` under ``root``; return their relative paths
+    and the preview scale (W m^-2 sr^-1 per count of the 16-bit PNG)."""
+    stem = frame_stem(index)
+    for folder in FRAME_FOLDERS:
+        (root / folder).mkdir(exist_ok=True)
+    preview, scale = radiance_to_uint16(image.radiance_w_m2_sr)
+    files = {
+        "image_png16": f"images/{stem}.png",
+        "radiance_exr": f"radiance/{stem}.exr",
+        "depth_exr": f"depth/{stem}.exr",
+        "normals_exr": f"normals/{stem}.exr",
+        "object_mask_png": f"masks/{stem}_object.png",
+        "part_mask_png16": f"masks/{stem}_parts.png",
+    }
+    write_png16(root / files["image_png16"], preview)
+    write_exr(root / files["radiance_exr"], {"RGB": image.radiance_w_m2_sr})
+    write_exr(root / files["depth_exr"], {"Z": image.depth_m})
+    write_exr(root / files["normals_exr"], {"XYZ": image.normals_cam})
+    write_png8(root / files["object_mask_png"], image.object_mask.astype(np.uint8) * 255)
+    write_png16(root / files["part_mask_png16"], image.part_id)
+    return {"files": files, "image_png16_w_m2_sr_per_count": scale}
+
+
+def write_labels(root: Path, document: dict) -> Path:
+    """Write labels.json (UTF-8, indented)."""
+    path = root / "labels.json"
+    payload = {"format": LABELS_FORMAT, "version": LABELS_VERSION, **document}
+    path.write_text(json.dumps(payload, indent=1) + "\n", encoding="utf-8")
+    return path

@@ -1,0 +1,143 @@
+"""One scenario end to end: target -> poses -> render -> labels -> files.
+
+``run_scenario`` is what ``satsight generate`` and ``satsight demo`` call; the CLI is a thin
+shell over it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from satsight import __version__
+from satsight.config.scenario import Scenario, TargetConfig
+from satsight.dataset.labels import frame_labels
+from satsight.dataset.preview import thumbnail, write_contact_sheet
+from satsight.dataset.staging import check_output_folder, staged_folder
+from satsight.dataset.writer import write_frame, write_labels
+from satsight.render.direct import DirectRenderer
+from satsight.scene.loading import load_mesh
+from satsight.scene.mesh import TargetMesh
+from satsight.scene.obj_export import write_obj
+from satsight.scene.procedural import generate_satellite
+
+CONVENTIONS = {
+    "units": "SI; names carry non-SI units",
+    "quaternion": "scalar-first [qw, qx, qy, qz], Hamilton, qw >= 0",
+    "pose": "x_cam = R(q_cam_from_body) @ x_body + t_cam_from_body_m",
+    "camera_frame": "OpenCV: +x right, +y down, +z boresight",
+    "pixel_origin": "(0, 0) is the centre of the top-left pixel",
+    "depth": "metres along +z_cam; 0 where no surface",
+    "part_mask": "0 background; part id = part index + 1",
+    "keypoints": "8 bounding-box corners (bit 0: x, bit 1: y, bit 2: z; 0 min, 1 max), then "
+    "the box centre",
+}
+
+
+def build_target(config: TargetConfig) -> TargetMesh:
+    """The target mesh a scenario asks for (procedural or loaded from a file)."""
+    if config.procedural is not None:
+        return generate_satellite(config.procedural.satellite_class, config.procedural.seed)
+    return load_mesh(config.mesh.path, scale_m=config.mesh.scale_m)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    out_dir: Path
+    frame_count: int
+    render_seconds: list[float]
+    total_seconds: float
+    variant: str
+
+
+ProgressCallback = Callable[[int, int], None]
+
+
+def run_scenario(
+    scenario: Scenario,
+    out_dir: Path,
+    overwrite: bool = False,
+    on_frame_done: ProgressCallback | None = None,
+) -> RunSummary:
+    """Render every frame of ``scenario`` and write the dataset to ``out_dir``.
+
+    The dataset is built in a temporary folder and moved into place only when complete.
+    ``on_frame_done(done, total)`` is called after each frame (for progress bars).
+    """
+    out_dir = Path(out_dir)
+    check_output_folder(out_dir, overwrite)
+    started = time.perf_counter()
+    mesh = build_target(scenario.target)
+    camera = scenario.camera.build()
+    sun = scenario.sun.build()
+    renderer = DirectRenderer(mesh, scenario.render.variant)
+    frames, thumbs, titles, render_seconds = [], [], [], []
+    with staged_folder(out_dir, overwrite) as root:
+        for index, frame in enumerate(scenario.frames):
+            view = frame.build()
+            cam_from_body = view.cam_from_body(mesh.center_m)
+            t0 = time.perf_counter()
+            image = renderer.render(camera, cam_from_body, sun, scenario.render.supersampling)
+            render_seconds.append(time.perf_counter() - t0)
+            labels = frame_labels(mesh, camera, cam_from_body, sun, image)
+            written = write_frame(root, index, image)
+            frames.append({"frame_index": index, **written, "view": frame.model_dump(), **labels})
+            thumbs.append(thumbnail(image.radiance_w_m2_sr))
+            titles.append(
+                f"#{index}  {frame.distance_km:g} km, az {frame.azimuth_deg:g}°, "
+                f"el {frame.elevation_deg:g}°\n{labels['object_pixel_count']} px on target, "
+                f"phase {labels['phase_angle_deg']:.0f}°"
+            )
+            if on_frame_done is not None:
+                on_frame_done(index + 1, len(scenario.frames))
+        (root / "model").mkdir()
+        write_obj(mesh, root / "model" / "target.obj")
+        (root / "scenario.yaml").write_text(
+            yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False), encoding="utf-8"
+        )
+        write_contact_sheet(
+            root / "contact_sheet.png",
+            thumbs,
+            titles,
+            f"{scenario.name}: {mesh.name}, {camera.width_px}x{camera.height_px} px, "
+            f"f = {camera.focal_length_m:g} m",
+        )
+        write_labels(
+            root,
+            {
+                "satsight_version": __version__,
+                "scenario": scenario.name,
+                "render_variant": renderer.variant,
+                "conventions": CONVENTIONS,
+                "camera": {
+                    "focal_length_m": camera.focal_length_m,
+                    "pixel_pitch_m": camera.pixel_pitch_m,
+                    "image_size_px": [camera.width_px, camera.height_px],
+                    "K": camera.K.tolist(),
+                    "fov_x_deg": float(np.degrees(camera.fov_x_rad)),
+                    "fov_y_deg": float(np.degrees(camera.fov_y_rad)),
+                },
+                "sun": {
+                    "direction_body": sun.direction_body.tolist(),
+                    "irradiance_w_m2": sun.irradiance_w_m2,
+                },
+                "target": {
+                    **mesh.summary(),
+                    "model_obj": "model/target.obj",
+                    "keypoints_body_m": mesh.keypoints_body_m.tolist(),
+                },
+                "frames": frames,
+            },
+        )
+    return RunSummary(
+        out_dir=out_dir,
+        frame_count=len(frames),
+        render_seconds=render_seconds,
+        total_seconds=time.perf_counter() - started,
+        variant=renderer.variant,
+    )

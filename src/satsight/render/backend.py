@@ -1,0 +1,102 @@
+"""Choose and start the Mitsuba 3 / Dr.Jit variant.
+
+``llvm_ad_rgb`` runs on the CPU through a shared libLLVM; ``cuda_ad_rgb`` runs on an NVIDIA
+GPU and is chosen automatically when one answers. Dr.Jit needs LLVM >= 16 here: Debian 12's
+LLVM 15 crashes at the first kernel, so when ``DRJIT_LIBLLVM_PATH`` is unset we point it at
+the newest libLLVM found on the system before Dr.Jit is imported.
+
+Mitsuba's variant is process-wide state; this module is the only place that sets it.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from functools import cache
+
+from satsight.errors import SatsightError
+
+CPU_VARIANT = "llvm_ad_rgb"
+GPU_VARIANT = "cuda_ad_rgb"
+_MIN_LLVM_MAJOR = 16
+_LIB_DIRS = (
+    "/usr/lib/x86_64-linux-gnu",
+    "/usr/lib/aarch64-linux-gnu",
+    "/usr/lib64",
+    "/usr/lib",
+    "/usr/local/lib",
+)
+
+
+def find_libllvm() -> str | None:
+    """Path of the newest shared libLLVM with major version >= 16, or None."""
+    best: tuple[int, str] | None = None
+    for directory in _LIB_DIRS:
+        for path in glob.glob(os.path.join(directory, "libLLVM*.so*")):
+            match = re.search(r"libLLVM(?:-|\.so\.)(\d+)", os.path.basename(path))
+            if match and int(match.group(1)) >= _MIN_LLVM_MAJOR:
+                major = int(match.group(1))
+                if best is None or major > best[0]:
+                    best = (major, path)
+    return None if best is None else best[1]
+
+
+def _prepare_llvm_environment() -> None:
+    if os.environ.get("DRJIT_LIBLLVM_PATH"):
+        return
+    path = find_libllvm()
+    if path is not None:
+        os.environ["DRJIT_LIBLLVM_PATH"] = path
+
+
+def _cuda_works(mi) -> bool:
+    if GPU_VARIANT not in mi.variants():
+        return False
+    try:
+        mi.set_variant(GPU_VARIANT)
+        import drjit as dr
+
+        value = dr.cuda.Float(1.0, 2.0) + 1.0
+        dr.eval(value)
+        return True
+    except Exception:
+        return False
+
+
+@cache
+def use_variant(requested: str = "auto") -> str:
+    """Start Mitsuba with a variant and return its name.
+
+    requested: ``"auto"`` (CUDA when an NVIDIA GPU works, else LLVM on the CPU),
+    ``"llvm_ad_rgb"`` or ``"cuda_ad_rgb"``. The environment variable ``SATSIGHT_VARIANT``
+    overrides ``"auto"``.
+    """
+    if requested == "auto":
+        requested = os.environ.get("SATSIGHT_VARIANT", "auto")
+    if requested not in ("auto", CPU_VARIANT, GPU_VARIANT):
+        raise SatsightError(
+            f"unknown render variant '{requested}'; use 'auto', '{CPU_VARIANT}' or '{GPU_VARIANT}'"
+        )
+    _prepare_llvm_environment()
+    import mitsuba as mi
+
+    if requested in ("auto", GPU_VARIANT) and _cuda_works(mi):
+        return GPU_VARIANT
+    if requested == GPU_VARIANT:
+        raise SatsightError(
+            "the CUDA variant was requested but no working NVIDIA GPU/driver was found; "
+            f"use '{CPU_VARIANT}' or 'auto'"
+        )
+    try:
+        mi.set_variant(CPU_VARIANT)
+        import drjit as dr
+
+        dr.eval(dr.llvm.Float(1.0, 2.0) + 1.0)
+    except Exception as exc:  # pragma: no cover - depends on the system's LLVM
+        raise SatsightError(
+            "Dr.Jit's CPU backend could not start (it needs a shared libLLVM >= 16). "
+            "On Debian/Ubuntu run: sudo apt-get install libllvm19 "
+            "(or set DRJIT_LIBLLVM_PATH to a libLLVM.so). Cause: " + str(exc)
+        ) from exc
+    return CPU_VARIANT
