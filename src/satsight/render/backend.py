@@ -50,7 +50,11 @@ def _prepare_llvm_environment() -> None:
         os.environ["DRJIT_LIBLLVM_PATH"] = path
 
 
-def _cuda_works(mi) -> bool:
+@cache
+def _cuda_works() -> bool:
+    """Whether Mitsuba's CUDA variant exists and a kernel runs on an NVIDIA GPU."""
+    import mitsuba as mi
+
     if GPU_VARIANT not in mi.variants():
         return False
     try:
@@ -64,7 +68,12 @@ def _cuda_works(mi) -> bool:
         return False
 
 
-@cache
+def gpu_available() -> bool:
+    """True when the ``cuda_ad_rgb`` variant can run here."""
+    _prepare_llvm_environment()
+    return _cuda_works()
+
+
 def use_variant(requested: str = "auto") -> str:
     """Start Mitsuba with a variant and return its name.
 
@@ -81,7 +90,8 @@ def use_variant(requested: str = "auto") -> str:
     _prepare_llvm_environment()
     import mitsuba as mi
 
-    if requested in ("auto", GPU_VARIANT) and _cuda_works(mi):
+    if requested in ("auto", GPU_VARIANT) and _cuda_works():
+        mi.set_variant(GPU_VARIANT)
         return GPU_VARIANT
     if requested == GPU_VARIANT:
         raise SatsightError(
@@ -90,9 +100,7 @@ def use_variant(requested: str = "auto") -> str:
         )
     try:
         mi.set_variant(CPU_VARIANT)
-        import drjit as dr
-
-        dr.eval(dr.llvm.Float(1.0, 2.0) + 1.0)
+        _llvm_works()
     except Exception as exc:  # pragma: no cover - depends on the system's LLVM
         raise SatsightError(
             "Dr.Jit's CPU backend could not start (it needs a shared libLLVM >= 16). "
@@ -100,3 +108,10 @@ def use_variant(requested: str = "auto") -> str:
             "(or set DRJIT_LIBLLVM_PATH to a libLLVM.so). Cause: " + str(exc)
         ) from exc
     return CPU_VARIANT
+
+
+@cache
+def _llvm_works() -> None:
+    import drjit as dr
+
+    dr.eval(dr.llvm.Float(1.0, 2.0) + 1.0)
