@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,7 +18,7 @@ import yaml
 from satsight import __version__
 from satsight.config.scenario import Scenario, TargetConfig
 from satsight.dataset.labels import frame_labels
-from satsight.dataset.preview import thumbnail, write_contact_sheet
+from satsight.dataset.preview import crop_box_xyxy_px, thumbnail, write_contact_sheet
 from satsight.dataset.staging import check_output_folder, staged_folder
 from satsight.dataset.writer import write_frame, write_labels
 from satsight.render.direct import DirectRenderer
@@ -56,6 +57,8 @@ class RunSummary:
 
 
 ProgressCallback = Callable[[int, int], None]
+# Frames whose files are written in the background while the next one renders.
+_WRITER_THREADS = 2
 
 
 def run_scenario(
@@ -77,7 +80,11 @@ def run_scenario(
     sun = scenario.sun.build()
     renderer = DirectRenderer(mesh, scenario.render.variant)
     frames, thumbs, titles, render_seconds = [], [], [], []
-    with staged_folder(out_dir, overwrite) as root:
+    with (
+        staged_folder(out_dir, overwrite) as root,
+        ThreadPoolExecutor(max_workers=_WRITER_THREADS) as writers,
+    ):
+        writes: list[Future] = []
         for index, frame in enumerate(scenario.frames):
             view = frame.build()
             cam_from_body = view.cam_from_body(mesh.center_m)
@@ -85,16 +92,24 @@ def run_scenario(
             image = renderer.render(camera, cam_from_body, sun, scenario.render.supersampling)
             render_seconds.append(time.perf_counter() - t0)
             labels = frame_labels(mesh, camera, cam_from_body, sun, image)
-            written = write_frame(root, index, image)
-            frames.append({"frame_index": index, **written, "view": frame.model_dump(), **labels})
-            thumbs.append(thumbnail(image.radiance_w_m2_sr))
+            # Files are compressed and written in the background while the next frame
+            # renders; waiting on older writes bounds the frames held in memory.
+            writes.append(writers.submit(write_frame, root, index, image))
+            if index >= _WRITER_THREADS:
+                writes[index - _WRITER_THREADS].result()
+            frames.append({"frame_index": index, "view": frame.model_dump(), **labels})
+            x0, y0, x1, y1 = crop_box_xyxy_px(labels["bbox_xyxy_px"], image.shape)
+            thumbs.append(thumbnail(image.radiance_w_m2_sr[y0:y1, x0:x1]))
             titles.append(
                 f"#{index}  {frame.distance_km:g} km, az {frame.azimuth_deg:g}°, "
-                f"el {frame.elevation_deg:g}°\n{labels['object_pixel_count']} px on target, "
-                f"phase {labels['phase_angle_deg']:.0f}°"
+                f"el {frame.elevation_deg:g}°, phase {labels['phase_angle_deg']:.0f}°\n"
+                f"{labels['object_pixel_count']} px on target; crop {x1 - x0} px wide"
             )
+            del image
             if on_frame_done is not None:
                 on_frame_done(index + 1, len(scenario.frames))
+        for record, write in zip(frames, writes, strict=True):
+            record.update(write.result())
         (root / "model").mkdir()
         write_obj(mesh, root / "model" / "target.obj")
         (root / "scenario.yaml").write_text(

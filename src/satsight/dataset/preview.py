@@ -22,6 +22,28 @@ def radiance_to_uint16(radiance_w_m2_sr: np.ndarray) -> tuple[np.ndarray, float]
     return scaled.astype(np.uint16), peak / 65535.0
 
 
+def crop_box_xyxy_px(
+    bbox_xyxy_px: list[int] | None,
+    shape: tuple[int, int],
+    margin: float = 0.4,
+    min_side_px: int = 64,
+) -> tuple[int, int, int, int]:
+    """A square window around a box, grown by ``margin`` of its size and clipped to the image.
+
+    Returns (x0, y0, x1, y1) with exclusive ends; the whole image when there is no box.
+    """
+    height, width = shape
+    if bbox_xyxy_px is None:
+        return 0, 0, width, height
+    x0, y0, x1, y1 = bbox_xyxy_px
+    side = max(x1 - x0 + 1, y1 - y0 + 1, min_side_px)
+    side = min(int(np.ceil(side * (1.0 + 2.0 * margin))), width, height)
+    cx, cy = (x0 + x1 + 1) // 2, (y0 + y1 + 1) // 2
+    left = int(np.clip(cx - side // 2, 0, width - side))
+    top = int(np.clip(cy - side // 2, 0, height - side))
+    return left, top, left + side, top + side
+
+
 def thumbnail(radiance_w_m2_sr: np.ndarray, max_side_px: int = 512) -> np.ndarray:
     """Box-averaged, gamma-stretched float image in [0, 1] no larger than max_side_px."""
     height, width = radiance_w_m2_sr.shape[:2]
@@ -46,13 +68,17 @@ def write_contact_sheet(
     count = len(thumbnails)
     cols = min(count, 3)
     rows = int(np.ceil(count / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 4.5 * rows), squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(4.2 * cols, 4.8 * rows), squeeze=False, layout="constrained"
+    )
     for ax in axes.ravel():
         ax.axis("off")
     for ax, image, title in zip(axes.ravel(), thumbnails, titles, strict=False):
         ax.imshow(image, interpolation="nearest")
         ax.set_title(title, fontsize=9)
-    fig.suptitle(heading + f"\n(each frame scaled to its own maximum, gamma 1/{PREVIEW_GAMMA})")
-    fig.tight_layout()
+    fig.suptitle(
+        heading + "\n(crops around the target; each scaled to its own maximum, "
+        f"display gamma {PREVIEW_GAMMA})"
+    )
     fig.savefig(path, dpi=100, facecolor="white")
     plt.close(fig)

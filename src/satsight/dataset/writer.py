@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from satsight.dataset.image_files import write_exr, write_png8, write_png16
+from satsight.dataset.image_files import write_exr, write_png
 from satsight.dataset.preview import radiance_to_uint16
 from satsight.render.buffers import RadianceImage
 
@@ -48,12 +48,12 @@ def write_frame(root: Path, index: int, image: RadianceImage) -> dict:
         "object_mask_png": f"masks/{stem}_object.png",
         "part_mask_png16": f"masks/{stem}_parts.png",
     }
-    write_png16(root / files["image_png16"], preview)
+    write_png(root / files["image_png16"], preview)
     write_exr(root / files["radiance_exr"], {"RGB": image.radiance_w_m2_sr})
     write_exr(root / files["depth_exr"], {"Z": image.depth_m})
     write_exr(root / files["normals_exr"], {"XYZ": image.normals_cam})
-    write_png8(root / files["object_mask_png"], image.object_mask.astype(np.uint8) * 255)
-    write_png16(root / files["part_mask_png16"], image.part_id)
+    write_png(root / files["object_mask_png"], image.object_mask.astype(np.uint8) * 255)
+    write_png(root / files["part_mask_png16"], image.part_id)
     return {"files": files, "image_png16_w_m2_sr_per_count": scale}
 
 

@@ -119,12 +119,17 @@ def look_at_cam_from_body(
             "at a non-zero distance from the target"
         )
     z = forward / dist
+    # Image right (+x) is z x up, perpendicular to the hint's projection on the image plane
+    # (|z x up| is the length of that projection).
     for candidate in (up, np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])):
-        up_perp = candidate - np.dot(candidate, z) * z
-        if np.linalg.norm(up_perp) > 1e-6 * max(np.linalg.norm(candidate), 1e-300):
+        x = np.cross(z, candidate)
+        if np.linalg.norm(x) > 1e-6 * max(np.linalg.norm(candidate), 1e-300):
             break
-    y = -up_perp / np.linalg.norm(up_perp)
-    x = np.cross(y, z)
+    # A hint close to the boresight leaves x with rounding error of relative size
+    # eps / sin(angle) along z: remove it so the axes stay orthonormal to ~1e-16.
+    x = x - np.dot(x, z) * z
+    x = x / np.linalg.norm(x)
+    y = np.cross(z, x)  # image down; -y is the projected hint
     if roll_rad:
         cr, sr = np.cos(roll_rad), np.sin(roll_rad)
         x, y = cr * x + sr * y, -sr * x + cr * y
