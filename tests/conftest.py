@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+
 @pytest.fixture(scope="session")
 def llvm_variant() -> str:
     """Start Mitsuba on the CPU backend once per test session."""

@@ -80,15 +80,10 @@ def _resolve_materials(parts, library: dict, file_materials: dict, path: Path):
     """Parts with a material name each, and the definitions: library, file, then default."""
     resolved = dict(library)
     default = library.get(DEFAULT_MATERIAL_NAME, FIRST_MATERIALS[DEFAULT_MATERIAL_NAME])
-    named = []
+    named, bare = [], []
     for part_name, material_name, vertices, faces in parts:
         if material_name is None:
-            log.warning(
-                "%s: part '%s' has no material; using '%s'",
-                path.name,
-                part_name,
-                DEFAULT_MATERIAL_NAME,
-            )
+            bare.append(part_name)
             material_name = DEFAULT_MATERIAL_NAME
             resolved.setdefault(material_name, default)
         elif material_name not in resolved and material_name in file_materials:
@@ -103,6 +98,15 @@ def _resolve_materials(parts, library: dict, file_materials: dict, path: Path):
             source = f"assumed: no definition in {path.name}; values of {DEFAULT_MATERIAL_NAME}"
             resolved[material_name] = replace(default, name=material_name, source=source)
         named.append((part_name, material_name, vertices, faces))
+    if bare:
+        shown = ", ".join(bare[:5]) + (", ..." if len(bare) > 5 else "")
+        log.warning(
+            "%s: %d part(s) have no material (%s); using '%s'",
+            path.name,
+            len(bare),
+            shown,
+            DEFAULT_MATERIAL_NAME,
+        )
     return named, resolved
 
 

@@ -173,11 +173,12 @@ def _add_deck_payload(
 
     if small_dish:
         diameter = rng.uniform(0.3, 0.8)
-        xy_d = None
-        while xy_d is None:
+        xy_d = _place(rng, half, 0.5 * diameter, taken, inside=False)
+        while xy_d is None and diameter > 0.2:  # crowded deck: shrink the dish
+            diameter *= 0.85
             xy_d = _place(rng, half, 0.5 * diameter, taken, inside=False)
-            if xy_d is None:
-                diameter *= 0.85
+        if xy_d is None:  # the deck corner opposite the telescope
+            xy_d = np.where(xy > 0, -half, half)
         taken.append((xy_d, 0.5 * diameter))
         mast_top = top + rng.uniform(0.15, 0.4)
         _add_dish(parts, rng, diameter, _pose(None, (*xy_d, mast_top)), 0.012, 48)
