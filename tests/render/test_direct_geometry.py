@@ -95,9 +95,7 @@ def test_depth_and_masks_match_embree_oracle(
     # incidence cosine is >= 0.1 (incidence < 84 deg); that is nearly every pixel.
     v, u = np.mgrid[0 : camera.height_px, 0 : camera.width_px]
     rays = camera.ray_directions_cam(np.stack([u, v], -1).reshape(-1, 2).astype(np.float64))
-    cos_incidence = np.abs(
-        np.einsum("ijk,ijk->ij", image.normals_cam, rays.reshape((*v.shape, 3)))
-    )
+    cos_incidence = np.abs(np.einsum("ijk,ijk->ij", image.normals_cam, rays.reshape((*v.shape, 3))))
     # Pixels where the casters saw different parts (counted above) are not depth-compared.
     both = image.object_mask & mask_ref & (image.part_id == part_ref)
     well_posed = both & (cos_incidence >= 0.1)

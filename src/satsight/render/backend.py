@@ -57,6 +57,7 @@ def _cuda_works() -> bool:
 
     if GPU_VARIANT not in mi.variants():
         return False
+    previous = mi.variant()
     try:
         mi.set_variant(GPU_VARIANT)
         import drjit as dr
@@ -66,6 +67,9 @@ def _cuda_works() -> bool:
         return True
     except Exception:
         return False
+    finally:
+        if previous is not None:
+            mi.set_variant(previous)
 
 
 def gpu_available() -> bool:

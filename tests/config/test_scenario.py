@@ -1,0 +1,223 @@
+"""Scenario files: validation messages that name the bad key, and unit conversions."""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.cli import example_scenario_path
+from satsight.config.scenario import (
+    CameraConfig,
+    FrameConfig,
+    Scenario,
+    SunConfig,
+    load_scenario,
+    parse_scenario,
+)
+from satsight.errors import SatsightError
+from satsight.scene.procedural import SATELLITE_CLASSES
+
+ATOL = 1e-12
+
+MINIMAL = {
+    "target": {"procedural": {"satellite_class": "two_wings", "seed": 1}},
+    "frames": [{"distance_km": 1.0}, {"distance_km": 2.0, "azimuth_deg": 30.0}],
+}
+
+
+def _minimal(**changes) -> dict:
+    data = copy.deepcopy(MINIMAL)
+    data.update(changes)
+    return data
+
+
+def _error_lines(data: object) -> str:
+    with pytest.raises(SatsightError) as info:
+        parse_scenario(data, "test.yaml")
+    return str(info.value)
+
+
+# --- the bundled example ------------------------------------------------------------------
+def test_bundled_example_validates() -> None:
+    scenario = load_scenario(example_scenario_path())
+    assert isinstance(scenario, Scenario)
+    assert scenario.name == "first-light"
+    assert len(scenario.frames) == 6
+    assert scenario.target.procedural is not None
+    assert scenario.target.procedural.satellite_class == "two_wings_dish"
+    assert scenario.target.mesh is None
+    assert scenario.frames[1].roll_deg == 30.0
+    assert scenario.camera.build() == PinholeCamera.high_resolution()
+
+
+def test_minimal_scenario_takes_documented_defaults() -> None:
+    scenario = parse_scenario(MINIMAL)
+    assert scenario.name == "scenario"
+    assert scenario.seed == 0
+    assert scenario.camera.preset == "high_resolution"
+    assert scenario.sun.azimuth_deg == 45.0
+    assert scenario.sun.elevation_deg == 30.0
+    assert scenario.render.supersampling == 1
+    assert scenario.render.variant == "auto"
+    assert scenario.frames[0].elevation_deg == 0.0
+    assert scenario.frames[0].roll_deg == 0.0
+
+
+# --- messages naming the bad key ----------------------------------------------------------
+def test_unknown_key_names_its_dotted_path() -> None:
+    data = _minimal()
+    data["frames"][1]["distanse_km"] = 3.0
+    message = _error_lines(data)
+    assert message.startswith("test.yaml: the scenario is not valid:")
+    line = next(ln for ln in message.splitlines() if "distanse_km" in ln)
+    assert "frames.1.distanse_km" in line
+    assert "unknown key" in line
+
+
+def test_unknown_top_level_key_is_an_error() -> None:
+    message = _error_lines(_minimal(framez=[]))
+    assert "framez: unknown key" in message
+
+
+def test_negative_distance_names_the_field_and_value() -> None:
+    data = _minimal()
+    data["frames"][0]["distance_km"] = -1.0
+    message = _error_lines(data)
+    line = next(ln for ln in message.splitlines() if "distance_km" in ln)
+    assert "frames.0.distance_km" in line
+    assert "(got -1.0)" in line
+    assert "frames.1" not in message
+
+
+def test_missing_frames_says_required() -> None:
+    data = _minimal()
+    del data["frames"]
+    message = _error_lines(data)
+    assert "frames: required key is missing" in message
+
+
+def test_empty_frame_list_is_refused() -> None:
+    message = _error_lines(_minimal(frames=[]))
+    assert "frames:" in message
+
+
+@pytest.mark.parametrize(
+    "target",
+    [
+        {"procedural": {"satellite_class": "two_wings"}, "mesh": {"path": "sat.obj"}},
+        {},
+    ],
+    ids=["both", "neither"],
+)
+def test_target_needs_exactly_one_of_procedural_or_mesh(target) -> None:
+    message = _error_lines(_minimal(target=target))
+    assert "target: give exactly one of 'procedural' or 'mesh'" in message
+
+
+def test_unknown_satellite_class_lists_valid_classes() -> None:
+    message = _error_lines(_minimal(target={"procedural": {"satellite_class": "three_wings"}}))
+    line = next(ln for ln in message.splitlines() if "three_wings" in ln)
+    assert line.lstrip().startswith("- target.procedural:")
+    for name in SATELLITE_CLASSES:
+        assert name in line
+
+
+def test_top_level_must_be_a_mapping() -> None:
+    with pytest.raises(SatsightError, match="expected a mapping"):
+        parse_scenario([1, 2, 3], "list.yaml")
+
+
+# --- files ----------------------------------------------------------------------------------
+def test_invalid_yaml_is_a_satsight_error(tmp_path: Path) -> None:
+    path = tmp_path / "broken.yaml"
+    path.write_text("frames: [ {distance_km: 1.0\nname: x\n", encoding="utf-8")
+    with pytest.raises(SatsightError, match="not valid YAML"):
+        load_scenario(path)
+
+
+def test_missing_file_is_a_satsight_error(tmp_path: Path) -> None:
+    path = tmp_path / "nowhere.yaml"
+    with pytest.raises(SatsightError, match="scenario file not found") as info:
+        load_scenario(path)
+    assert str(path) in str(info.value)
+
+
+def test_relative_mesh_path_resolves_against_the_yaml_folder(tmp_path: Path) -> None:
+    folder = tmp_path / "scenarios"
+    folder.mkdir()
+    data = _minimal(target={"mesh": {"path": "models/sat.obj", "scale_m": 0.001}})
+    path = folder / "mesh.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    scenario = load_scenario(path)
+    assert scenario.target.mesh.path == (folder / "models" / "sat.obj").resolve()
+    assert scenario.target.mesh.path.is_absolute()
+    assert scenario.target.mesh.scale_m == 0.001
+    assert scenario.target.procedural is None
+    # The rest of the scenario is unchanged.
+    assert [f.distance_km for f in scenario.frames] == [1.0, 2.0]
+
+
+def test_absolute_mesh_path_is_kept(tmp_path: Path) -> None:
+    absolute = tmp_path / "elsewhere" / "sat.glb"
+    data = _minimal(target={"mesh": {"path": str(absolute)}})
+    path = tmp_path / "abs.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    assert load_scenario(path).target.mesh.path == absolute
+
+
+# --- builds ----------------------------------------------------------------------------------
+def test_camera_override_keeps_optics_and_recentres_principal_point() -> None:
+    camera = CameraConfig(preset="wide_field", width_px=512).build()
+    assert camera.focal_length_m == 0.7
+    assert camera.pixel_pitch_m == 15e-6
+    assert camera.width_px == 512
+    assert camera.height_px == 4112
+    assert camera.cx_px == (512 - 1) / 2.0
+    assert camera.cy_px == (4112 - 1) / 2.0
+    np.testing.assert_allclose(
+        camera.K,
+        [[0.7 / 15e-6, 0.0, 255.5], [0.0, 0.7 / 15e-6, 2055.5], [0.0, 0.0, 1.0]],
+        rtol=0,
+        atol=ATOL,
+    )
+
+
+def test_camera_pixel_pitch_is_given_in_micrometres() -> None:
+    camera = CameraConfig(pixel_pitch_um=7.5, focal_length_m=1.5).build()
+    assert camera.pixel_pitch_m == pytest.approx(7.5e-6, rel=1e-15)
+    assert camera.focal_length_m == 1.5
+    assert (camera.width_px, camera.height_px) == (4096, 4112)
+
+
+@pytest.mark.parametrize(
+    ("azimuth_deg", "elevation_deg"), [(0.0, 0.0), (90.0, 0.0), (40.0, 35.0), (-120.0, -60.0)]
+)
+def test_sun_direction_is_unit_and_matches_angles(azimuth_deg, elevation_deg) -> None:
+    sun = SunConfig(azimuth_deg=azimuth_deg, elevation_deg=elevation_deg, irradiance_w_m2=1361.0)
+    light = sun.build()
+    az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
+    expected = [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+    np.testing.assert_allclose(light.direction_body, expected, rtol=0, atol=ATOL)
+    assert np.linalg.norm(light.direction_body) == pytest.approx(1.0, abs=ATOL)
+    assert light.irradiance_w_m2 == 1361.0
+
+
+def test_sun_elevation_out_of_range_is_refused() -> None:
+    message = _error_lines(_minimal(sun={"elevation_deg": 91.0}))
+    assert "sun.elevation_deg" in message
+
+
+def test_frame_build_converts_km_and_degrees() -> None:
+    view = FrameConfig(
+        distance_km=2.5, azimuth_deg=90.0, elevation_deg=-30.0, roll_deg=45.0
+    ).build()
+    assert view.distance_m == 2500.0
+    assert view.azimuth_rad == pytest.approx(math.pi / 2, abs=ATOL)
+    assert view.elevation_rad == pytest.approx(-math.pi / 6, abs=ATOL)
+    assert view.roll_rad == pytest.approx(math.pi / 4, abs=ATOL)

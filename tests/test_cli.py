@@ -1,0 +1,283 @@
+"""The command line end to end: the demo dataset on disk, and the error paths.
+
+The full demo (six 4096 x 4112 frames) runs once per module; every check of its files
+reads what it wrote.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.cli import example_scenario_path, main
+from satsight.config.scenario import load_scenario
+from satsight.dataset.image_files import read_exr, read_png
+from satsight.dataset.labels import mask_bbox_xyxy_px
+from satsight.scene.loading import load_mesh
+
+FRAME_COUNT = 6
+HEIGHT_PX, WIDTH_PX = 4112, 4096
+DEPTH_MEDIAN_RTOL = 0.03  # the target is a few metres deep at >= 800 m
+UNIT_NORMAL_ATOL = 1e-5
+FILE_KEYS = (
+    "image_png16",
+    "radiance_exr",
+    "depth_exr",
+    "normals_exr",
+    "object_mask_png",
+    "part_mask_png16",
+)
+TOP_LEVEL_KEYS = {
+    "format",
+    "version",
+    "satsight_version",
+    "scenario",
+    "render_variant",
+    "conventions",
+    "camera",
+    "sun",
+    "target",
+    "frames",
+}
+
+
+@pytest.fixture(scope="module")
+def demo_dir(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("demo") / "dataset"
+    main(["demo", "--out", str(out)])
+    return out
+
+
+@pytest.fixture(scope="module")
+def labels(demo_dir: Path) -> dict:
+    return json.loads((demo_dir / "labels.json").read_text(encoding="utf-8"))
+
+
+def _satsight(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "COLUMNS": "200"}  # keep rich from wrapping messages
+    return subprocess.run(
+        [sys.executable, "-m", "satsight", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+        check=False,
+    )
+
+
+# --- the demo dataset ---------------------------------------------------------------------
+def test_demo_writes_six_frames_and_leaves_no_staging_folder(demo_dir: Path, labels) -> None:
+    assert len(labels["frames"]) == FRAME_COUNT
+    assert [f["frame_index"] for f in labels["frames"]] == list(range(FRAME_COUNT))
+    assert [p.name for p in demo_dir.parent.iterdir()] == ["dataset"]
+    for folder in ("images", "radiance", "depth", "normals", "masks"):
+        assert len(list((demo_dir / folder).iterdir())) == FRAME_COUNT * (
+            2 if folder == "masks" else 1
+        )
+
+
+def test_labels_top_level(labels) -> None:
+    assert set(labels) == TOP_LEVEL_KEYS
+    assert labels["format"] == "satsight-labels"
+    assert labels["version"] == 1
+    assert labels["scenario"] == "first-light"
+    assert labels["render_variant"] in ("llvm_ad_rgb", "cuda_ad_rgb")
+    preset = PinholeCamera.high_resolution()
+    camera = labels["camera"]
+    np.testing.assert_array_equal(camera["K"], preset.K)
+    assert camera["image_size_px"] == [WIDTH_PX, HEIGHT_PX]
+    assert camera["focal_length_m"] == 3.0
+    assert camera["pixel_pitch_m"] == 15e-6
+    for key in ("units", "quaternion", "pose", "camera_frame", "pixel_origin", "depth"):
+        assert labels["conventions"][key]
+    parts = labels["target"]["parts"]
+    assert len(parts) >= 2
+    assert [p["part_id"] for p in parts] == list(range(1, len(parts) + 1))
+    assert all(p["name"] and p["material"] and p["triangle_count"] > 0 for p in parts)
+    assert labels["target"]["name"] == "two_wings_dish-seed3"
+    assert len(labels["target"]["keypoints_body_m"]) == 9
+    az, el = np.radians(40.0), np.radians(35.0)
+    np.testing.assert_allclose(
+        labels["sun"]["direction_body"],
+        [np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)],
+        atol=1e-12,
+    )
+
+
+def test_model_contact_sheet_and_scenario_copy(demo_dir: Path, labels) -> None:
+    sheet = read_png(demo_dir / "contact_sheet.png")
+    assert sheet.ndim == 3 and sheet.shape[2] in (3, 4)
+    assert (demo_dir / "model" / "target.obj").is_file()
+    assert (demo_dir / "model" / "target.mtl").is_file()
+    mesh = load_mesh(demo_dir / "model" / "target.obj")
+    assert mesh.part_names == tuple(p["name"] for p in labels["target"]["parts"])
+    np.testing.assert_allclose(mesh.bounds_m, labels["target"]["bounds_m"], atol=1e-6)
+    copy = load_scenario(demo_dir / "scenario.yaml")
+    assert copy == load_scenario(example_scenario_path())
+
+
+@pytest.mark.parametrize("index", range(FRAME_COUNT))
+def test_frame_files(demo_dir: Path, labels, index: int) -> None:
+    frame = labels["frames"][index]
+    files = frame["files"]
+    assert set(files) == set(FILE_KEYS)
+    for key in FILE_KEYS:
+        assert (demo_dir / files[key]).is_file(), files[key]
+    camera = PinholeCamera.high_resolution()
+    part_count = len(labels["target"]["parts"])
+
+    object_mask = read_png(demo_dir / files["object_mask_png"])
+    assert object_mask.dtype == np.uint8
+    assert object_mask.shape == (HEIGHT_PX, WIDTH_PX)
+    assert set(np.unique(object_mask).tolist()) == {0, 255}
+    on = object_mask > 0
+    assert int(on.sum()) == frame["object_pixel_count"] > 0
+    assert mask_bbox_xyxy_px(on) == frame["bbox_xyxy_px"]
+
+    # Radiance: the 16-bit preview times its scale gives the EXR back within one count.
+    png16 = read_png(demo_dir / files["image_png16"])
+    assert png16.dtype == np.uint16
+    assert png16.shape == (HEIGHT_PX, WIDTH_PX, 3)
+    assert png16.max() == 65535
+    radiance = read_exr(demo_dir / files["radiance_exr"])
+    assert set(radiance) == {"RGB"}
+    radiance = radiance["RGB"]
+    assert radiance.dtype == np.float32
+    assert radiance.shape == (HEIGHT_PX, WIDTH_PX, 3)
+    scale = frame["image_png16_w_m2_sr_per_count"]
+    assert scale == pytest.approx(float(radiance.max()) / 65535.0, rel=1e-12)
+    assert np.abs(png16 * scale - radiance).max() <= scale
+    assert not radiance[~on].any()  # only the target reflects light
+    del png16, radiance
+
+    # Depth: 0 exactly off the target, positive on it, about the range to the box centre.
+    depth = read_exr(demo_dir / files["depth_exr"])
+    assert set(depth) == {"Z"}
+    depth = depth["Z"]
+    assert depth.dtype == np.float32
+    assert depth.shape == (HEIGHT_PX, WIDTH_PX)
+    assert np.all(depth[~on] == 0.0)
+    assert np.all(depth[on] > 0.0)
+    assert float(np.median(depth[on])) == pytest.approx(
+        frame["range_to_center_m"], rel=DEPTH_MEDIAN_RTOL
+    )
+    assert frame["range_to_center_m"] == pytest.approx(
+        labels["frames"][index]["view"]["distance_km"] * 1e3, rel=1e-12
+    )
+    del depth
+
+    # Part ids: 1..parts on the target, 0 elsewhere.
+    parts = read_png(demo_dir / files["part_mask_png16"])
+    assert parts.dtype == np.uint16
+    assert parts.shape == (HEIGHT_PX, WIDTH_PX)
+    np.testing.assert_array_equal(parts > 0, on)
+    assert parts[on].min() >= 1
+    assert parts[on].max() <= part_count
+
+    # Normals: unit on the target, zero off it, facing the camera.
+    normals = read_exr(demo_dir / files["normals_exr"])
+    assert set(normals) == {"XYZ"}
+    normals = normals["XYZ"]
+    assert normals.dtype == np.float32
+    assert normals.shape == (HEIGHT_PX, WIDTH_PX, 3)
+    n_on = normals[on].astype(np.float64)
+    np.testing.assert_allclose(np.linalg.norm(n_on, axis=1), 1.0, rtol=0, atol=UNIT_NORMAL_ATOL)
+    assert not normals[~on].any()
+    v, u = np.nonzero(on)
+    rays = camera.ray_directions_cam(np.stack([u, v], axis=1).astype(np.float64))
+    assert np.all(np.einsum("ij,ij->i", rays, n_on) <= 1e-6)
+
+    # The box centre keypoint lies on the optical axis (views look at the box centre).
+    np.testing.assert_allclose(
+        frame["keypoints_px"][8], [camera.cx_px, camera.cy_px], rtol=0, atol=1e-6
+    )
+
+
+# --- error paths and the other commands -----------------------------------------------------
+def test_unknown_key_exits_2_naming_the_key_and_writes_nothing(tmp_path: Path) -> None:
+    data = yaml.safe_load(example_scenario_path().read_text(encoding="utf-8"))
+    data["frames"][1]["distanse_km"] = 3.0
+    config = tmp_path / "typo.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    out = tmp_path / "never"
+    result = _satsight("generate", str(config), "--out", str(out), cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "frames.1.distanse_km" in result.stderr
+    assert "unknown key" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["typo.yaml"]
+
+
+def test_non_empty_output_folder_without_overwrite_exits_2_untouched(tmp_path: Path) -> None:
+    out = tmp_path / "dataset"
+    out.mkdir()
+    (out / "keep.txt").write_text("precious", encoding="utf-8")
+    result = _satsight("demo", "--out", str(out), cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "not empty" in result.stderr and "--overwrite" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert (out / "keep.txt").read_text(encoding="utf-8") == "precious"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dataset"]
+
+
+def test_missing_scenario_file_exits_2(tmp_path: Path) -> None:
+    result = _satsight("generate", "absent.yaml", "--out", "x", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "scenario file not found" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_satellite_writes_obj_and_mtl(tmp_path: Path) -> None:
+    out = tmp_path / "models" / "X.obj"
+    result = _satsight("satellite", "four_panels", "--seed", "2", "--out", str(out), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert out.is_file()
+    assert out.with_suffix(".mtl").is_file()
+    obj = out.read_text(encoding="utf-8")
+    assert "mtllib X.mtl" in obj
+    assert obj.count("\nf ") > 100
+    mesh = load_mesh(out)
+    assert len(mesh.part_names) >= 2
+    assert 2.0 <= float(mesh.extent_m.max()) <= 10.0
+
+
+def test_unknown_satellite_class_exits_2(tmp_path: Path) -> None:
+    out = tmp_path / "X.obj"
+    result = _satsight("satellite", "nope", "--out", str(out), cwd=tmp_path)
+    assert result.returncode == 2
+    assert "nope" in result.stderr and "two_wings" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert not out.exists()
+
+
+def test_bench_prints_json(tmp_path: Path) -> None:
+    result = _satsight("bench", "--frames", "5", "--sizes", "64x64", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["benchmark"] == "render"
+    assert report["variant"] in ("llvm_ad_rgb", "cuda_ad_rgb")
+    [entry] = report["results"]
+    assert entry["width_px"] == 64
+    assert entry["height_px"] == 64
+    assert entry["frames_timed"] == 5
+    assert entry["median_s"] > 0
+    assert entry["min_s"] <= entry["median_s"] <= entry["max_s"]
+
+
+@pytest.mark.parametrize("sizes", ["64", "64x", "0x64", "axb"])
+def test_bench_bad_sizes_exit_2(tmp_path: Path, sizes: str) -> None:
+    result = _satsight("bench", "--sizes", sizes, cwd=tmp_path)
+    assert result.returncode == 2
+    assert "--sizes must look like" in result.stderr
+    assert "Traceback" not in result.stderr
