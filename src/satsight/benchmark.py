@@ -18,6 +18,7 @@ import time
 import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
+from satsight.errors import SatsightError
 from satsight.poses.views import View
 from satsight.render.buffers import SunLight
 from satsight.render.direct import DirectRenderer
@@ -104,6 +105,17 @@ def run_render_benchmark(sizes_px=DEFAULT_SIZES_PX, frames: int = 5, variant: st
     }
 
 
+def parse_sizes_px(text: str) -> list[tuple[int, int]]:
+    """Parse "1024x1024,4096x4112" into [(1024, 1024), (4096, 4112)]."""
+    try:
+        sizes = [tuple(int(v) for v in item.lower().split("x")) for item in text.split(",")]
+        if any(len(size) != 2 or min(size) < 1 for size in sizes):
+            raise ValueError
+    except ValueError:
+        raise SatsightError(f"--sizes must look like 1024x1024,4096x4112; got '{text}'") from None
+    return sizes
+
+
 def _kernel_history(clear: bool = False) -> tuple[float, int, int]:
     """(compile seconds, kernels compiled, kernels loaded from Dr.Jit's disk cache) since
     the last call; a warm disk cache makes the first frame nearly as fast as the rest."""
@@ -133,5 +145,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--variant", default="auto")
     parser.add_argument("--sizes", default="1024x1024,2048x2048,4096x4112")
     args = parser.parse_args(argv)
-    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
-    print(json.dumps(run_render_benchmark(sizes, args.frames, args.variant), indent=2))
+    print(
+        json.dumps(
+            run_render_benchmark(parse_sizes_px(args.sizes), args.frames, args.variant), indent=2
+        )
+    )

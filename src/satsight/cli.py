@@ -116,15 +116,10 @@ def generate(config: Path, out_dir: Path, overwrite: bool) -> None:
 )
 def bench(frames: int, sizes: str, variant: str) -> None:
     """Time the render stage; prints JSON with median seconds per frame."""
-    from satsight.benchmark import run_render_benchmark
+    from satsight.benchmark import parse_sizes_px, run_render_benchmark
 
-    try:
-        parsed = [tuple(int(v) for v in s.lower().split("x")) for s in sizes.split(",")]
-        if any(len(p) != 2 or min(p) < 1 for p in parsed):
-            raise ValueError
-    except ValueError:
-        raise SatsightError(f"--sizes must look like 1024x1024,4096x4112; got '{sizes}'") from None
-    click.echo(json.dumps(run_render_benchmark(parsed, frames, variant), indent=2))
+    result = run_render_benchmark(parse_sizes_px(sizes), frames, variant)
+    click.echo(json.dumps(result, indent=2))
 
 
 @cli.command()
