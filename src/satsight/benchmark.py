@@ -13,6 +13,7 @@ import math
 import platform
 import resource
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -145,8 +146,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--variant", default="auto")
     parser.add_argument("--sizes", default="1024x1024,2048x2048,4096x4112")
     args = parser.parse_args(argv)
-    print(
-        json.dumps(
-            run_render_benchmark(parse_sizes_px(args.sizes), args.frames, args.variant), indent=2
-        )
-    )
+    try:
+        result = run_render_benchmark(parse_sizes_px(args.sizes), args.frames, args.variant)
+    except SatsightError as error:
+        print(f"error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
+    print(json.dumps(result, indent=2))
