@@ -185,8 +185,9 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
 
     # Normals: unit on the target, zero off it, facing the camera.
     normals = read_exr(demo_dir / files["normals_exr"])
-    assert set(normals) == {"XYZ"}
-    normals = normals["XYZ"]
+    # Plain X, Y, Z channels, as the README documents (not a "XYZ.R" group).
+    assert set(normals) == {"X", "Y", "Z"}
+    normals = np.stack([normals["X"], normals["Y"], normals["Z"]], axis=-1)
     assert normals.dtype == np.float32
     assert normals.shape == (HEIGHT_PX, WIDTH_PX, 3)
     n_on = normals[on].astype(np.float64)
@@ -229,6 +230,26 @@ def test_non_empty_output_folder_without_overwrite_exits_2_untouched(tmp_path: P
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
     assert (out / "keep.txt").read_text(encoding="utf-8") == "precious"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dataset"]
+
+
+def test_overwrite_refuses_a_folder_that_is_not_a_dataset(tmp_path: Path) -> None:
+    out = tmp_path / "documents"
+    out.mkdir()
+    (out / "thesis.tex").write_text("precious", encoding="utf-8")
+    result = _satsight("demo", "--out", str(out), "--overwrite", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "only satsight datasets" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert [p.name for p in out.iterdir()] == ["thesis.tex"]
+
+
+def test_unwritable_output_exits_2_without_traceback(tmp_path: Path) -> None:
+    """An operating-system error (here: a folder under /proc cannot be created) is reported
+    as a message, not a traceback."""
+    result = _satsight("satellite", "one_wing", "--out", "/proc/satsight-x/y.obj", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    assert "error" in result.stderr
 
 
 def test_missing_scenario_file_exits_2(tmp_path: Path) -> None:

@@ -146,6 +146,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--variant", default="auto")
     parser.add_argument("--sizes", default="1024x1024,2048x2048,4096x4112")
     args = parser.parse_args(argv)
+    if args.frames < 5:
+        parser.error("--frames must be at least 5 (the median needs several frames)")
     try:
         result = run_render_benchmark(parse_sizes_px(args.sizes), args.frames, args.variant)
     except SatsightError as error:

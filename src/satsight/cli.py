@@ -158,3 +158,7 @@ def main(argv: list[str] | None = None) -> None:
     except SatsightError as error:
         console.print(f"[red]error:[/red] {error}", highlight=False)
         sys.exit(2)
+    except OSError as error:
+        where = f": {error.filename}" if error.filename else ""
+        console.print(f"[red]error:[/red] {error.strerror or error}{where}", highlight=False)
+        sys.exit(2)

@@ -6,6 +6,7 @@ shell over it.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -20,7 +21,8 @@ from satsight.config.scenario import Scenario, TargetConfig
 from satsight.dataset.labels import frame_labels
 from satsight.dataset.preview import crop_box_xyxy_px, thumbnail, write_contact_sheet
 from satsight.dataset.staging import check_output_folder, staged_folder
-from satsight.dataset.writer import write_frame, write_labels
+from satsight.dataset.writer import LABELS_FORMAT, write_frame, write_labels
+from satsight.errors import SatsightError
 from satsight.render.direct import DirectRenderer
 from satsight.scene.loading import load_mesh
 from satsight.scene.mesh import TargetMesh
@@ -38,6 +40,15 @@ CONVENTIONS = {
     "keypoints": "8 bounding-box corners (bit 0: x, bit 1: y, bit 2: z; 0 min, 1 max), then "
     "the box centre",
 }
+
+
+def is_dataset(folder: Path) -> bool:
+    """Whether ``folder`` holds a dataset written by satsight (its labels.json says so)."""
+    try:
+        document = json.loads((Path(folder) / "labels.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(document, dict) and document.get("format") == LABELS_FORMAT
 
 
 def build_target(config: TargetConfig) -> TargetMesh:
@@ -74,6 +85,11 @@ def run_scenario(
     """
     out_dir = Path(out_dir)
     check_output_folder(out_dir, overwrite)
+    if overwrite and out_dir.is_dir() and any(out_dir.iterdir()) and not is_dataset(out_dir):
+        raise SatsightError(
+            f"--overwrite replaces only satsight datasets, and {out_dir} holds no satsight "
+            "labels.json; choose an empty or new folder"
+        )
     started = time.perf_counter()
     mesh = build_target(scenario.target)
     camera = scenario.camera.build()
@@ -84,6 +100,9 @@ def run_scenario(
         staged_folder(out_dir, overwrite) as root,
         ThreadPoolExecutor(max_workers=_WRITER_THREADS) as writers,
     ):
+        # The model goes first: a mesh that cannot be written fails before any rendering.
+        (root / "model").mkdir()
+        write_obj(mesh, root / "model" / "target.obj")
         writes: list[Future] = []
         for index, frame in enumerate(scenario.frames):
             view = frame.build()
@@ -110,8 +129,6 @@ def run_scenario(
                 on_frame_done(index + 1, len(scenario.frames))
         for record, write in zip(frames, writes, strict=True):
             record.update(write.result())
-        (root / "model").mkdir()
-        write_obj(mesh, root / "model" / "target.obj")
         (root / "scenario.yaml").write_text(
             yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False), encoding="utf-8"
         )

@@ -199,3 +199,57 @@ def test_supersampling_keeps_labels_and_converges(satellite, renderer):
     assert errors[0] > errors[1] > errors[2] > 0.0
     # Reflected power is conserved by the box filter to within the edge aliasing.
     assert images[4].radiance_w_m2_sr.sum() == pytest.approx(reference.sum(), rel=0.02)
+
+
+def test_mesh_modelled_far_from_its_origin_renders_like_a_centred_one(satellite, llvm_variant):
+    """A mesh whose vertices sit 5 km from its own origin (CAD files do this) renders the
+    same depth, masks and radiance as the same mesh centred: the renderer works about the
+    bounding-box centre, so float32 keeps its precision."""
+    from satsight.scene.mesh import TargetMesh
+
+    offset = np.array([5000.0, -3000.0, 1200.0])
+    far = TargetMesh(
+        satellite.vertices_m + offset,
+        satellite.faces,
+        satellite.face_part_index,
+        satellite.part_names,
+        satellite.part_materials,
+        satellite.materials,
+        name="far",
+    )
+    view = View(800.0, 0.6, 0.35, 0.2)
+    camera = _camera_for(satellite, view.distance_m, 160)
+    near_image = DirectRenderer(satellite, llvm_variant).render(
+        camera, view.cam_from_body(satellite.center_m), SUN
+    )
+    far_image = DirectRenderer(far, llvm_variant).render(
+        camera, view.cam_from_body(far.center_m), SUN
+    )
+    assert near_image.object_mask.sum() > 2000
+    assert np.mean(near_image.part_id == far_image.part_id) >= AGREEMENT_FRACTION
+    both = near_image.object_mask & far_image.object_mask
+    np.testing.assert_allclose(far_image.depth_m[both], near_image.depth_m[both], atol=ONE_MM)
+    same = (near_image.part_id == far_image.part_id)[..., None]
+    diff = np.abs(far_image.radiance_w_m2_sr - near_image.radiance_w_m2_sr)
+    assert (
+        np.mean(
+            diff[np.broadcast_to(same, diff.shape)]
+            < 1e-3 + 1e-4 * near_image.radiance_w_m2_sr[np.broadcast_to(same, diff.shape)]
+        )
+        >= 0.999
+    )
+
+
+def test_keypoints_behind_the_camera_are_null_and_labels_stay_json(satellite, renderer):
+    """With the camera inside the bounding box some corners are behind it: no projection."""
+    import json
+
+    view = View(0.6 * satellite.bounding_radius_m, 0.3, 0.1)
+    camera = _camera_for(satellite, 100.0, 64)
+    cam_from_body = view.cam_from_body(satellite.center_m)
+    image = renderer.render(camera, cam_from_body, SUN)
+    labels = frame_labels(satellite, camera, cam_from_body, SUN, image)
+    behind = np.array(labels["keypoints_depth_m"]) <= 0
+    assert behind.any()
+    assert all((kp is None) == b for kp, b in zip(labels["keypoints_px"], behind, strict=True))
+    json.dumps(labels, allow_nan=False)  # raises on NaN

@@ -349,3 +349,29 @@ def test_scale_must_be_positive_and_finite(tmp_path: Path, scale_m: float) -> No
     obj_path, _ = write_obj(generate_satellite("one_wing", 0), tmp_path / "sat.obj")
     with pytest.raises(SatsightError, match="scale_m must be a positive number"):
         load_mesh(obj_path, scale_m=scale_m)
+
+
+def test_white_space_in_gltf_names_becomes_underscores_and_writes_as_obj(tmp_path: Path) -> None:
+    """Names like "Solar Panel" are common in glTF files; they must survive the OBJ model
+    written beside a dataset, so white space becomes '_' (names stay unique)."""
+    panel = trimesh.creation.box(extents=[2.0, 1.0, 0.1])
+    panel.visual = pbr("Blue Cells", [0.1, 0.1, 0.5, 1.0], 0.0, 0.2)
+    other = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+    other.visual = pbr("Blue_Cells", [0.9, 0.9, 0.9, 1.0], 1.0, 0.4)
+    scene = trimesh.Scene()
+    scene.add_geometry(panel, node_name="Solar Panel", geom_name="a")
+    scene.add_geometry(other, node_name="Solar_Panel", geom_name="b")
+    glb = tmp_path / "spaced.glb"
+    scene.export(glb)
+
+    mesh = load_mesh(glb)
+    assert all(" " not in n for n in mesh.part_names + mesh.part_materials)
+    assert len(set(mesh.part_names)) == 2 and len(set(mesh.part_materials)) == 2
+    assert set(mesh.part_names) >= {"Solar_Panel"}
+    # the two materials keep their own values after renaming
+    metallic = sorted(mesh.materials[m].metallic for m in mesh.part_materials)
+    assert metallic == pytest.approx([0.0, 1.0], abs=ATOL)
+    obj, _ = write_obj(mesh, tmp_path / "model.obj")
+    again = load_mesh(obj)
+    assert again.part_names == mesh.part_names
+    assert again.part_materials == mesh.part_materials

@@ -21,7 +21,7 @@ from satsight.render.buffers import SunLight
 from satsight.scene.procedural import SATELLITE_CLASSES
 
 # In-band (450-900 nm) solar irradiance at 1 AU from the ASTM E-490 air-mass-zero spectrum,
-# W m^-2. The spectrum integration itself arrives with the radiative pipeline.
+# W m^-2, taken as a constant (no spectrum is integrated).
 DEFAULT_SUN_IRRADIANCE_W_M2 = 671.5
 
 
@@ -168,6 +168,8 @@ def load_scenario(path: str | Path) -> Scenario:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as error:
         raise SatsightError(f"{path}: not valid YAML: {error}") from None
+    except UnicodeDecodeError:
+        raise SatsightError(f"{path}: not a UTF-8 text file; save it as UTF-8 YAML") from None
     scenario = parse_scenario(data, str(path))
     mesh = scenario.target.mesh
     if mesh is not None and not mesh.path.is_absolute():

@@ -32,8 +32,8 @@ def write_exr(path: Path, channels: dict[str, np.ndarray]) -> None:
     RLE is lossless, and on space images (mostly exact zeros) it is twice as fast as ZIP
     for files about 20 % larger.
 
-    channels: name -> (H, W) or (H, W, C) array; a 3-plane array named "RGB" becomes the
-    R, G, B channels, "XYZ" the X, Y, Z channels.
+    channels: name -> (H, W) array, or an (H, W, 3) array named "RGB", which becomes the
+    R, G, B channels (other 3-plane names become NAME.R, NAME.G, NAME.B).
     """
     header = {"compression": OpenEXR.RLE_COMPRESSION, "type": OpenEXR.scanlineimage}
     data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}

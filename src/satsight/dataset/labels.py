@@ -37,9 +37,9 @@ def frame_labels(
     body origin), range_to_center_m (to the bounding-box centre), phase_angle_deg
     (Sun-target-camera angle at the box centre), bbox_xyxy_px (from the object mask),
     keypoints_px (projected bounding-box corners then centre, see
-    ``TargetMesh.keypoints_body_m``), keypoints_depth_m, object_pixel_count,
-    visible_pixel_fraction (object pixels / image pixels), truncated (mask touches
-    the image border).
+    ``TargetMesh.keypoints_body_m``; null for one at or behind the camera),
+    keypoints_depth_m, object_pixel_count, visible_pixel_fraction (object pixels / image
+    pixels), truncated (mask touches the image border).
     """
     mask = image.object_mask
     keypoints_cam = cam_from_body.apply(mesh.keypoints_body_m)
@@ -61,7 +61,8 @@ def frame_labels(
         "range_to_center_m": float(np.linalg.norm(center_cam)),
         "phase_angle_deg": float(phase),
         "bbox_xyxy_px": mask_bbox_xyxy_px(mask),
-        "keypoints_px": keypoints_px.tolist(),
+        # a keypoint at or behind the camera plane has no projection: null
+        "keypoints_px": [None if np.isnan(p).any() else p.tolist() for p in keypoints_px],
         "keypoints_depth_m": keypoints_cam[:, 2].tolist(),
         "object_pixel_count": count,
         "visible_pixel_fraction": count / mask.size,

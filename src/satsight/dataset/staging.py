@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -28,7 +29,12 @@ def staged_folder(out_dir: Path, overwrite: bool = False) -> Iterator[Path]:
     On any error the temporary folder is removed and ``out_dir`` is left as it was, so a
     failed or interrupted run never leaves a half-written dataset.
     """
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir).resolve()
+    if out_dir == Path(out_dir.anchor) or Path.cwd().is_relative_to(out_dir):
+        raise SatsightError(
+            f"output folder {out_dir} is the current folder or one of its parents; "
+            "choose a folder of its own"
+        )
     check_output_folder(out_dir, overwrite)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=out_dir.parent))
@@ -37,11 +43,24 @@ def staged_folder(out_dir: Path, overwrite: bool = False) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    if out_dir.exists():
-        old = out_dir.with_name(f".{out_dir.name}.old-{staging.name.rsplit('-', 1)[-1]}")
-        out_dir.rename(old)
+    _apply_umask(staging)
+    old = out_dir.with_name(f".{out_dir.name}.old-{staging.name.rsplit('-', 1)[-1]}")
+    try:
+        if out_dir.exists():
+            out_dir.rename(old)
         staging.rename(out_dir)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        staging.rename(out_dir)
-    out_dir.chmod(0o755)
+    except OSError as error:
+        if old.exists() and not out_dir.exists():
+            old.rename(out_dir)
+        shutil.rmtree(staging, ignore_errors=True)
+        raise SatsightError(
+            f"could not move the finished dataset into {out_dir}: {error}"
+        ) from None
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _apply_umask(folder: Path) -> None:
+    """Give the staging folder (created 0700 by mkdtemp) the permissions of a new folder."""
+    umask = os.umask(0)
+    os.umask(umask)
+    folder.chmod(0o777 & ~umask)

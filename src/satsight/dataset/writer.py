@@ -51,7 +51,11 @@ def write_frame(root: Path, index: int, image: RadianceImage) -> dict:
     write_png(root / files["image_png16"], preview)
     write_exr(root / files["radiance_exr"], {"RGB": image.radiance_w_m2_sr})
     write_exr(root / files["depth_exr"], {"Z": image.depth_m})
-    write_exr(root / files["normals_exr"], {"XYZ": image.normals_cam})
+    normals = image.normals_cam
+    write_exr(
+        root / files["normals_exr"],
+        {"X": normals[..., 0], "Y": normals[..., 1], "Z": normals[..., 2]},
+    )
     write_png(root / files["object_mask_png"], image.object_mask.astype(np.uint8) * 255)
     write_png(root / files["part_mask_png16"], image.part_id)
     return {"files": files, "image_png16_w_m2_sr_per_count": scale}
@@ -61,5 +65,5 @@ def write_labels(root: Path, document: dict) -> Path:
     """Write labels.json (UTF-8, indented)."""
     path = root / "labels.json"
     payload = {"format": LABELS_FORMAT, "version": LABELS_VERSION, **document}
-    path.write_text(json.dumps(payload, indent=1) + "\n", encoding="utf-8")
+    path.write_text(json.dumps(payload, indent=1, allow_nan=False) + "\n", encoding="utf-8")
     return path

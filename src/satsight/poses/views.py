@@ -7,7 +7,7 @@ bounding-box centre, in the direction (azimuth, elevation) of the body frame::
 
 The boresight points at the centre; image "up" is the body +z axis projected on the image
 plane (the body +x axis when looking along z), then the camera rolls by ``roll_rad`` about
-its boresight. The orbit-driven samplers produce the same ``cam_from_body`` poses.
+its boresight.
 """
 
 from __future__ import annotations

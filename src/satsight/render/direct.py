@@ -6,10 +6,10 @@ shading is Dr.Jit code traced into the same kernels as the ray queries; per-fram
 (camera pose, intrinsics, sun direction and irradiance) enter as opaque Dr.Jit variables,
 so frames after the first reuse the compiled kernels.
 
-Render space is the target's body frame (the mesh never moves; the camera does). The
-geometry stays where float32 is most precise, near the origin, and shadow rays start from
-hit points reconstructed from barycentric coordinates, so self-shadowing needs only a
-sub-millimetre offset even when the camera is 200 km away. See docs/design.md.
+Render space is the target's body frame shifted to its bounding-box centre: the mesh never
+moves (the camera does), the geometry stays where float32 is most precise, and shadow rays
+start from hit points rebuilt from barycentric coordinates, so self-shadowing needs an
+offset of only 2e-5 of the target's size even with the camera 200 km away. See docs/design.md.
 """
 
 from __future__ import annotations
@@ -42,7 +42,10 @@ class DirectRenderer:
 
         self._mi, self._dr = mi, dr
         self.mesh = mesh
-        vertices = mesh.vertices_m
+        # Render space: the body frame shifted (in float64) to the bounding-box centre, so
+        # float32 geometry stays precise even for meshes modelled far from their origin.
+        self._render_origin_body_m = mesh.center_m
+        vertices = mesh.vertices_m - self._render_origin_body_m
         faces = mesh.faces
         tri = vertices[faces]  # (M, 3, 3) float64
         e1 = tri[:, 1] - tri[:, 0]
@@ -88,8 +91,7 @@ class DirectRenderer:
             self._mat_ior,
         )
         self._shadow_offset_m = max(
-            _MIN_SHADOW_OFFSET_M,
-            _SHADOW_OFFSET_PER_M * (mesh.bounding_radius_m + float(np.abs(mesh.center_m).max())),
+            _MIN_SHADOW_OFFSET_M, _SHADOW_OFFSET_PER_M * mesh.bounding_radius_m
         )
 
     # ------------------------------------------------------------------------------------
@@ -114,6 +116,7 @@ class DirectRenderer:
             mi.set_variant(self.variant)
         width, height = camera.width_px, camera.height_px
         body_from_cam = cam_from_body.inverse()
+        camera_render_m = body_from_cam.t_a_from_b_m - self._render_origin_body_m
         if cam_from_body.t_a_from_b_m[2] <= 0:
             raise SatsightError(
                 "the target centre is behind the camera (t_cam_from_body_m z <= 0); check the pose"
@@ -122,14 +125,14 @@ class DirectRenderer:
         frame = {
             "R_body_from_cam": mi.Matrix3f(body_from_cam.R_a_from_b.astype(np.float32)),
             "R_cam_from_body": mi.Matrix3f(cam_from_body.R_a_from_b.astype(np.float32)),
-            "camera_body": mi.Point3f(*(float(c) for c in body_from_cam.t_a_from_b_m)),
+            "camera_body": mi.Point3f(*(float(c) for c in camera_render_m)),
             "fx": mi.Float(float(camera.focal_length_px)),
             "cx": mi.Float(float(camera.cx_px)),
             "cy": mi.Float(float(camera.cy_px)),
             "sun_dir": mi.Vector3f(*(float(c) for c in sun.direction_body)),
             "sun_e": mi.Float(float(sun.irradiance_w_m2)),
             "eps": mi.Float(float(self._shadow_offset_m)),
-            "t_start": mi.Float(self._ray_start_m(body_from_cam.t_a_from_b_m)),
+            "t_start": mi.Float(self._ray_start_m(camera_render_m)),
         }
         # Opaque: the values live in memory, not as literals in the kernel, so the next
         # frame with other values reuses the compiled kernel.
@@ -148,16 +151,19 @@ class DirectRenderer:
         if supersampling == 1:
             radiance = self._shade(frame, geo)
         else:
+            # s x s stratified sub-pixel rays, one pass per offset: memory stays that of a
+            # single-sample frame and every pass reuses the same compiled kernel.
+            dr.eval(depth, part_id, normals)
             s = int(supersampling)
-            spp = s * s
-            sidx = dr.arange(mi.UInt32, n_pix * spp)
-            pixel = sidx // spp
-            sub = sidx % spp
-            ox = (mi.Float(sub % s) + 0.5) / s - 0.5
-            oy = (mi.Float(sub // s) + 0.5) / s - 0.5
-            geo_ss = self._trace(frame, mi.Float(pixel % width) + ox, mi.Float(pixel // width) + oy)
-            radiance = dr.block_sum(self._shade(frame, geo_ss), spp) / spp
-
+            radiance = mi.Color3f(0.0)
+            for j in range(s):
+                for i in range(s):
+                    ox = mi.Float((i + 0.5) / s - 0.5)
+                    oy = mi.Float((j + 0.5) / s - 0.5)
+                    dr.make_opaque(ox, oy)
+                    radiance = radiance + self._shade(frame, self._trace(frame, px + ox, py + oy))
+                    dr.eval(radiance)
+            radiance = radiance / float(s * s)
         flat_rad = dr.ravel(radiance)
         flat_n = dr.ravel(normals)
         dr.eval(flat_rad, depth, part_id, flat_n)
@@ -168,10 +174,10 @@ class DirectRenderer:
             normals_cam=flat_n.numpy().reshape(height, width, 3),
         )
 
-    def _ray_start_m(self, camera_body_m: np.ndarray) -> float:
+    def _ray_start_m(self, camera_render_m: np.ndarray) -> float:
         """Distance along every primary ray that is surely in front of the target."""
         margin_m = 1e-3 * self.mesh.bounding_radius_m + 1e-3
-        gap = np.linalg.norm(camera_body_m - self.mesh.center_m) - self.mesh.bounding_radius_m
+        gap = np.linalg.norm(camera_render_m) - self.mesh.bounding_radius_m
         return float(max(0.0, gap - margin_m))
 
     # ------------------------------------------------------------------------------------

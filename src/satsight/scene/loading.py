@@ -71,6 +71,7 @@ def load_mesh(
         _refuse_compression(header, path)
         parts, file_materials = _read_gltf(path, header)
     parts, resolved = _resolve_materials(parts, library, file_materials, path)
+    parts, resolved = _whitespace_free_names(parts, resolved)
     scaled = [(n, m, v * scale_m, f) for n, m, v, f in parts]
     return merge_parts(scaled, materials=resolved, name=path.stem)
 
@@ -133,6 +134,26 @@ def _refuse_empty(scene: trimesh.Scene, path: Path) -> None:
 
 def _clip01(value: float) -> float:
     return float(np.clip(value, 0.0, 1.0))
+
+
+def _whitespace_free_names(parts, materials: dict):
+    """Replace white space in part and material names with '_' (kept unique), so every name
+    survives the OBJ/MTL model written beside a dataset and tokenised tools."""
+
+    def clean(name: str) -> str:
+        return re.sub(r"\s+", "_", name.strip()) or "unnamed"
+
+    used = {m for _, m, _, _ in parts}
+    renamed: dict[str, str] = {}
+    taken_materials = {name for name in materials if name not in used}
+    for name in sorted(used):
+        renamed[name] = _unique(clean(name), taken_materials)
+    resolved = {k: v for k, v in materials.items() if k not in used}
+    for old, new in renamed.items():
+        resolved[new] = materials[old] if new == old else replace(materials[old], name=new)
+    taken_parts: set[str] = set()
+    cleaned = [(_unique(clean(n), taken_parts), renamed[m], v, f) for n, m, v, f in parts]
+    return cleaned, resolved
 
 
 def _unique(name: str, taken: set[str]) -> str:
