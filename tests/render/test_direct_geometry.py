@@ -253,3 +253,13 @@ def test_keypoints_behind_the_camera_are_null_and_labels_stay_json(satellite, re
     assert behind.any()
     assert all((kp is None) == b for kp, b in zip(labels["keypoints_px"], behind, strict=True))
     json.dumps(labels, allow_nan=False)  # raises on NaN
+
+
+def test_pose_with_the_target_behind_the_camera_is_refused(satellite, renderer):
+    from satsight.errors import SatsightError
+    from satsight.frames.rigid import RigidTransform
+
+    camera = _camera_for(satellite, 1000.0, 32)
+    behind = RigidTransform(np.eye(3), -satellite.center_m + np.array([0.0, 0.0, -50.0]))
+    with pytest.raises(SatsightError, match="behind the camera"):
+        renderer.render(camera, behind, SUN)

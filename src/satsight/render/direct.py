@@ -117,9 +117,9 @@ class DirectRenderer:
         width, height = camera.width_px, camera.height_px
         body_from_cam = cam_from_body.inverse()
         camera_render_m = body_from_cam.t_a_from_b_m - self._render_origin_body_m
-        if cam_from_body.t_a_from_b_m[2] <= 0:
+        if cam_from_body.apply(self.mesh.center_m)[2] <= 0:
             raise SatsightError(
-                "the target centre is behind the camera (t_cam_from_body_m z <= 0); check the pose"
+                "the target's bounding-box centre is behind the camera (z_cam <= 0); check the pose"
             )
 
         frame = {
