@@ -1,0 +1,1 @@
+"""Light at the target: the Sun, earthshine and other bodies as spherical harmonics."""
