@@ -23,7 +23,9 @@ from satsight.dataset.preview import crop_box_xyxy_px, thumbnail, write_contact_
 from satsight.dataset.staging import check_output_folder, staged_folder
 from satsight.dataset.writer import LABELS_FORMAT, write_frame, write_labels
 from satsight.errors import SatsightError
-from satsight.render.direct import DirectRenderer
+from satsight.lighting.bodies import environment_light_field
+from satsight.lighting.light_field import LightField
+from satsight.render.renderer import Renderer
 from satsight.scene.loading import load_mesh
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.obj_export import write_obj
@@ -56,6 +58,27 @@ def build_target(config: TargetConfig) -> TargetMesh:
     if config.procedural is not None:
         return generate_satellite(config.procedural.satellite_class, config.procedural.seed)
     return load_mesh(config.mesh.path, scale_m=config.mesh.scale_m)
+
+
+def build_light_field(scenario: Scenario) -> LightField:
+    """The light at the target: the Sun, plus earthshine and moonshine when configured."""
+    sun = scenario.sun.build()
+    earth, moon = scenario.earth, scenario.moon
+    return environment_light_field(
+        sun.direction_body,
+        sun.irradiance_w_m2,
+        earth_center_from_target_m=None if earth is None else earth.center_from_target_m(),
+        earth_albedo=0.30 if earth is None else earth.albedo,
+        moon_center_from_target_m=None if moon is None else moon.center_from_target_m(),
+        moon_albedo=0.12 if moon is None else moon.albedo,
+        l_max=scenario.render.sh_order,
+    )
+
+
+def frame_seed(scenario_seed: int, frame_index: int) -> int:
+    """The render seed of one frame, independent of which other frames are rendered."""
+    state = np.random.SeedSequence([scenario_seed, frame_index]).generate_state(2, np.uint32)
+    return int(state[0]) << 32 | int(state[1])
 
 
 @dataclass(frozen=True)
@@ -94,7 +117,8 @@ def run_scenario(
     mesh = build_target(scenario.target)
     camera = scenario.camera.build()
     sun = scenario.sun.build()
-    renderer = DirectRenderer(mesh, scenario.render.variant)
+    light = build_light_field(scenario)
+    renderer = Renderer(mesh, scenario.render.settings(), scenario.render.variant)
     frames, thumbs, titles, render_seconds = [], [], [], []
     with (
         staged_folder(out_dir, overwrite) as root,
@@ -108,7 +132,9 @@ def run_scenario(
             view = frame.build()
             cam_from_body = view.cam_from_body(mesh.center_m)
             t0 = time.perf_counter()
-            image = renderer.render(camera, cam_from_body, sun, scenario.render.supersampling)
+            image = renderer.render(
+                camera, cam_from_body, light, seed=frame_seed(scenario.seed, index)
+            )
             render_seconds.append(time.perf_counter() - t0)
             labels = frame_labels(mesh, camera, cam_from_body, sun, image)
             # Files are compressed and written in the background while the next frame

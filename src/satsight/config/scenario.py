@@ -11,18 +11,26 @@ import math
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from satsight.camera.pinhole import CAMERA_PRESETS, PinholeCamera
 from satsight.errors import SatsightError
+from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, SPECTRA, band_irradiance_w_m2
 from satsight.poses.views import View, direction_from_angles
 from satsight.render.buffers import SunLight
+from satsight.render.settings import (
+    BRDF_MODELS,
+    ENVIRONMENT_MODES,
+    GGX_MASKINGS,
+    SH_ORDER_RANGE,
+    SUN_REPRESENTATIONS,
+    RenderSettings,
+)
 from satsight.scene.procedural import SATELLITE_CLASSES
 
-# In-band (450-900 nm) solar irradiance at 1 AU from the ASTM E-490 air-mass-zero spectrum,
-# W m^-2, taken as a constant (no spectrum is integrated).
-DEFAULT_SUN_IRRADIANCE_W_M2 = 671.5
+EARTH_RADIUS_M = 6_371_008.8  # mean radius, IUGG (Moritz 2000, Geodetic Reference System 1980)
 
 
 class _Strict(BaseModel):
@@ -82,18 +90,67 @@ class TargetConfig(_Strict):
         return self
 
 
+def _direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+    return direction_from_angles(math.radians(azimuth_deg), math.radians(elevation_deg))
+
+
 class SunConfig(_Strict):
-    """Sun direction (from the target) in the body frame, and in-band irradiance."""
+    """Sun direction (from the target) in the body frame, and its in-band irradiance.
+
+    The irradiance is the solar spectrum integrated over ``band_nm`` at ``distance_au``
+    unless ``irradiance_w_m2`` gives it directly.
+    """
 
     azimuth_deg: float = 45.0
     elevation_deg: float = Field(default=30.0, ge=-90, le=90)
-    irradiance_w_m2: float = Field(default=DEFAULT_SUN_IRRADIANCE_W_M2, gt=0)
+    spectrum: Literal[SPECTRA] = "astm_e490"
+    band_nm: tuple[float, float] = DEFAULT_BAND_NM
+    distance_au: float = Field(default=1.0, gt=0)
+    irradiance_w_m2: float | None = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _band_order(self) -> SunConfig:
+        lo, hi = self.band_nm
+        if not (0 < lo < hi):
+            raise ValueError(f"band_nm must be [lo, hi] with 0 < lo < hi, got {list(self.band_nm)}")
+        return self
+
+    @property
+    def in_band_irradiance_w_m2(self) -> float:
+        if self.irradiance_w_m2 is not None:
+            return self.irradiance_w_m2
+        return band_irradiance_w_m2(self.band_nm, self.spectrum, self.distance_au)
 
     def build(self) -> SunLight:
-        direction = direction_from_angles(
-            math.radians(self.azimuth_deg), math.radians(self.elevation_deg)
+        return SunLight(
+            _direction(self.azimuth_deg, self.elevation_deg), self.in_band_irradiance_w_m2
         )
-        return SunLight(direction, self.irradiance_w_m2)
+
+
+class EarthConfig(_Strict):
+    """The Earth seen from the target: direction of its centre (body frame), altitude of
+    the target above the mean sphere, and a Lambertian albedo (scalar or per channel)."""
+
+    azimuth_deg: float = 0.0
+    elevation_deg: float = Field(default=-90.0, ge=-90, le=90)
+    altitude_km: float = Field(default=500.0, gt=0, le=1e6)
+    albedo: float | tuple[float, float, float] = 0.30
+
+    def center_from_target_m(self) -> np.ndarray:
+        distance_m = EARTH_RADIUS_M + self.altitude_km * 1e3
+        return distance_m * _direction(self.azimuth_deg, self.elevation_deg)
+
+
+class MoonConfig(_Strict):
+    """The Moon seen from the target: direction of its centre (body frame), distance, albedo."""
+
+    azimuth_deg: float = 0.0
+    elevation_deg: float = Field(default=0.0, ge=-90, le=90)
+    distance_km: float = Field(default=384_400.0, gt=2000)
+    albedo: float | tuple[float, float, float] = 0.12
+
+    def center_from_target_m(self) -> np.ndarray:
+        return self.distance_km * 1e3 * _direction(self.azimuth_deg, self.elevation_deg)
 
 
 class FrameConfig(_Strict):
@@ -114,8 +171,29 @@ class FrameConfig(_Strict):
 
 
 class RenderConfig(_Strict):
+    """How frames are rendered; see ``satsight.render.settings.RenderSettings``."""
+
+    brdf: Literal[BRDF_MODELS] = "ggx"
+    ggx_masking: Literal[GGX_MASKINGS] = "schlick"
+    sh_order: int = Field(default=4, ge=SH_ORDER_RANGE[0], le=SH_ORDER_RANGE[1])
+    sun_model: Literal[SUN_REPRESENTATIONS] = "delta"
+    environment: Literal[ENVIRONMENT_MODES] = "sampled"
+    bounces: int = Field(default=2, ge=0, le=16)
+    samples_per_pixel: int = Field(default=1, ge=1, le=4096)
     supersampling: int = Field(default=1, ge=1, le=8)
     variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
+
+    def settings(self) -> RenderSettings:
+        return RenderSettings(
+            brdf=self.brdf,
+            ggx_masking=self.ggx_masking,
+            sh_order=self.sh_order,
+            sun=self.sun_model,
+            environment=self.environment,
+            bounces=self.bounces,
+            samples_per_pixel=self.samples_per_pixel,
+            supersampling=self.supersampling,
+        )
 
 
 class Scenario(_Strict):
@@ -126,6 +204,8 @@ class Scenario(_Strict):
     camera: CameraConfig = CameraConfig()
     target: TargetConfig
     sun: SunConfig = SunConfig()
+    earth: EarthConfig | None = None
+    moon: MoonConfig | None = None
     frames: list[FrameConfig] = Field(min_length=1)
     render: RenderConfig = RenderConfig()
 

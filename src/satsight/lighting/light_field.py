@@ -47,7 +47,7 @@ class LightField:
         c = np.asarray(self.sh_radiance_w_m2_sr, dtype=np.float64)
         if c.ndim == 1:
             c = c[:, None].repeat(3, axis=1)
-        l_max = int(round(np.sqrt(c.shape[0]))) - 1
+        l_max = round(np.sqrt(c.shape[0])) - 1
         if c.ndim != 2 or c.shape[1] != 3 or (l_max + 1) ** 2 != c.shape[0]:
             raise SatsightError(
                 "sh_radiance_w_m2_sr must have shape ((l_max + 1)^2, 3), got "
@@ -58,7 +58,7 @@ class LightField:
     @property
     def l_max(self) -> int:
         """Highest SH degree of the environment expansion."""
-        return int(round(np.sqrt(self.sh_radiance_w_m2_sr.shape[0]))) - 1
+        return round(np.sqrt(self.sh_radiance_w_m2_sr.shape[0])) - 1
 
     @classmethod
     def sun_only(

@@ -9,6 +9,15 @@ Each material is what the renderer needs to evaluate the paper's GGX model (Eq. 
 
 ``alpha`` here is the *opacity* of the paper (1 opaque, 0 fully transparent), not the GGX width.
 
+The Phong models (paper Eq. 16-17) take their coefficients from the same material:
+``kd = (1 - M) base (1 - F0)`` (the diffuse light that is not reflected at the interface, so
+``kd + ks <= 1``), ``ks`` as above, and a gloss exponent ``g`` from the roughness unless
+given: ``g = (1 / alpha_ggx^2 - 1) / 2``. That is the Blinn-Phong exponent matching a
+microfacet width, ``2 / alpha^2 - 2`` (Walter et al. 2007, EGSR, section 5.2), divided by 4
+because the paper's lobe is around the mirror direction (cos^g beta with beta ~ 2 theta_h),
+and clamped to [1, 10^4]. The improved model's extra exponents ``a``, ``b`` and ``c`` are
+assumed values until fitted to measured BRDF data.
+
 The values of ``FIRST_MATERIALS`` are representative first choices for the part types of
 the paper's IceSat-2 model (section 3.3 and Fig. 11); the only published figure used is
 aluminium's F0 = 0.91 (paper section 3.3). The others are assumptions until the material
@@ -23,6 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from satsight.errors import SatsightError
+
+MIN_GLOSS_EXPONENT = 1.0
+MAX_GLOSS_EXPONENT = 1.0e4
+MAX_LOBE_DECAY_B = 20.0
+MAX_DIFFUSE_EXPONENT_C = 4.0
 
 
 @dataclass(frozen=True)
@@ -41,6 +55,10 @@ class Material:
     ior: float
     alpha: float = 1.0
     source: str = "assumed"
+    gloss_exponent_g: float | None = None
+    fresnel_exponent_a: float = 0.5
+    lobe_decay_b: float = 0.5
+    diffuse_exponent_c: float = 1.0
 
     def __post_init__(self) -> None:
         color = tuple(float(c) for c in self.base_color_rgb)
@@ -54,6 +72,23 @@ class Material:
                 problems.append(f"{key} must be in [0, 1], got {value}")
         if not (self.ior >= 1.0 and math.isfinite(self.ior)):
             problems.append(f"ior must be a finite number >= 1, got {self.ior}")
+        g = self.gloss_exponent_g
+        if g is not None and not (MIN_GLOSS_EXPONENT <= g <= MAX_GLOSS_EXPONENT):
+            problems.append(
+                f"gloss_exponent_g must be in [{MIN_GLOSS_EXPONENT:g}, {MAX_GLOSS_EXPONENT:g}], "
+                f"got {g}"
+            )
+        if not (0.0 <= self.fresnel_exponent_a <= 1.0):
+            problems.append(f"fresnel_exponent_a must be in [0, 1], got {self.fresnel_exponent_a}")
+        if not (0.0 <= self.lobe_decay_b <= MAX_LOBE_DECAY_B):
+            problems.append(
+                f"lobe_decay_b must be in [0, {MAX_LOBE_DECAY_B:g}], got {self.lobe_decay_b}"
+            )
+        if not (0.0 <= self.diffuse_exponent_c <= MAX_DIFFUSE_EXPONENT_C):
+            problems.append(
+                f"diffuse_exponent_c must be in [0, {MAX_DIFFUSE_EXPONENT_C:g}], "
+                f"got {self.diffuse_exponent_c}"
+            )
         if problems:
             raise SatsightError(f"material '{self.name}': " + "; ".join(problems))
 
@@ -76,6 +111,20 @@ class Material:
     def alpha_ggx(self) -> float:
         """GGX distribution width alpha = R^2 (paper Eq. 19)."""
         return self.roughness**2
+
+    @property
+    def phong_kd_rgb(self) -> np.ndarray:
+        """Diffuse coefficient of the Phong models, (1 - M) base (1 - F0), so kd + ks <= 1."""
+        return self.kd_rgb * (1.0 - self.f0)
+
+    @property
+    def phong_gloss_exponent(self) -> float:
+        """Gloss exponent g of the Phong lobe: given, or matched to the GGX roughness."""
+        if self.gloss_exponent_g is not None:
+            return float(self.gloss_exponent_g)
+        alpha = max(self.alpha_ggx, 1e-6)
+        g = 0.5 * (1.0 / alpha**2 - 1.0)
+        return float(min(max(g, MIN_GLOSS_EXPONENT), MAX_GLOSS_EXPONENT))
 
 
 def _m(name, rgb, metallic, roughness, ior, alpha=1.0, source="assumed"):

@@ -1,0 +1,92 @@
+"""How a frame is rendered: reflection model, lighting representation, light paths, samples.
+
+One ``RenderSettings`` object carries every choice that changes the radiance of a frame;
+the scenario's ``render:`` block builds it, and ``satsight ablate`` varies it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Literal
+
+from satsight.errors import SatsightError
+
+BrdfModel = Literal["ggx", "improved_phong", "phong"]
+GgxMasking = Literal["schlick", "smith"]
+SunRepresentation = Literal["delta", "sh"]
+EnvironmentMode = Literal["sampled", "unshadowed", "off"]
+
+BRDF_MODELS: tuple[str, ...] = ("ggx", "improved_phong", "phong")
+GGX_MASKINGS: tuple[str, ...] = ("schlick", "smith")
+SUN_REPRESENTATIONS: tuple[str, ...] = ("delta", "sh")
+ENVIRONMENT_MODES: tuple[str, ...] = ("sampled", "unshadowed", "off")
+SH_ORDER_RANGE = (2, 8)
+MAX_BOUNCES = 16
+MAX_TRANSPARENT_LAYERS = 8
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Every choice that changes a frame's radiance.
+
+    brdf: ``"ggx"`` (metallic/roughness/IOR, paper Eq. 18-20), ``"improved_phong"``
+    (paper Eq. 17) or ``"phong"`` (paper Eq. 16). ggx_masking: ``"schlick"`` (the paper's
+    Schlick-GGX, k = (R+1)^2/8) or ``"smith"`` (exact separable Smith GGX).
+    sh_order: highest SH degree L of the environment light field (paper: 4).
+    sun: ``"delta"`` (exact collimated source with a shadow ray) or ``"sh"`` (the Sun's
+    delta expanded into SH of order ``sh_order`` and added to the environment, as the
+    paper's Eq. 10). environment: ``"sampled"`` (environment light by BRDF-sampled rays,
+    so the target shadows itself), ``"unshadowed"`` (diffuse part from the SH irradiance,
+    no self-shadowing; specular part sampled) or ``"off"``.
+    bounces: inter-reflections between parts after the first surface (0 = direct light
+    only). samples_per_pixel: light paths per pixel and sub-pixel position.
+    supersampling: s gives s x s stratified sub-pixel positions; labels always come from
+    the pixel centre. max_transparent_layers: surfaces with opacity alpha < 1 a ray may
+    pass through before it stops.
+    """
+
+    brdf: BrdfModel = "ggx"
+    ggx_masking: GgxMasking = "schlick"
+    sh_order: int = 4
+    sun: SunRepresentation = "delta"
+    environment: EnvironmentMode = "sampled"
+    bounces: int = 2
+    samples_per_pixel: int = 1
+    supersampling: int = 1
+    max_transparent_layers: int = 4
+
+    def __post_init__(self) -> None:
+        problems = []
+        for key, allowed in (
+            ("brdf", BRDF_MODELS),
+            ("ggx_masking", GGX_MASKINGS),
+            ("sun", SUN_REPRESENTATIONS),
+            ("environment", ENVIRONMENT_MODES),
+        ):
+            if getattr(self, key) not in allowed:
+                problems.append(f"{key} must be one of {', '.join(allowed)}")
+        lo, hi = SH_ORDER_RANGE
+        if not (isinstance(self.sh_order, int) and lo <= self.sh_order <= hi):
+            problems.append(f"sh_order must be an integer in [{lo}, {hi}]")
+        if not (isinstance(self.bounces, int) and 0 <= self.bounces <= MAX_BOUNCES):
+            problems.append(f"bounces must be an integer in [0, {MAX_BOUNCES}]")
+        if not (isinstance(self.samples_per_pixel, int) and 1 <= self.samples_per_pixel):
+            problems.append("samples_per_pixel must be an integer >= 1")
+        if not (isinstance(self.supersampling, int) and 1 <= self.supersampling <= 8):
+            problems.append("supersampling must be an integer in [1, 8]")
+        if not (1 <= self.max_transparent_layers <= MAX_TRANSPARENT_LAYERS):
+            problems.append(f"max_transparent_layers must be in [1, {MAX_TRANSPARENT_LAYERS}]")
+        if problems:
+            raise SatsightError("render settings: " + "; ".join(problems))
+
+    @property
+    def passes(self) -> int:
+        """Light paths traced per pixel: supersampling^2 x samples_per_pixel."""
+        return self.supersampling**2 * self.samples_per_pixel
+
+    def with_(self, **changes) -> RenderSettings:
+        """A copy with some settings changed (validated again)."""
+        return replace(self, **changes)
+
+
+DIRECT_SUN_ONLY = RenderSettings(environment="off", bounces=0)
