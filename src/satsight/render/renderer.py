@@ -49,6 +49,8 @@ from satsight.scene.mesh import TargetMesh
 # Shadow- and bounce-ray origin offset along the normal, relative to the target's size.
 _RAY_OFFSET_PER_M = 2e-5
 _MIN_RAY_OFFSET_M = 1e-5
+# Light paths traced per kernel launch when several passes share one launch.
+_LANES_PER_LAUNCH = 1 << 20
 # Opacity above which a surface counts as solid for the label images.
 LABEL_OPACITY_THRESHOLD = 0.5
 
@@ -173,14 +175,14 @@ class Renderer:
             # Two 32-bit keys of the frame seed, for the TEA hashes that seed the generators.
             "key0": mi.UInt32(int(seed) & 0xFFFFFFFF),
             "key1": mi.UInt32((int(seed) >> 32) & 0xFFFFFFFF),
+            "width": width,
             "env": [mi.Color3f(*(float(v) for v in row)) for row in env],
         }
-        dr.make_opaque(*(v for k, v in frame.items() if k != "env"), *frame["env"])
+        dr.make_opaque(*(v for k, v in frame.items() if k not in ("env", "width")), *frame["env"])
 
         n_pix = width * height
         idx = dr.arange(mi.UInt32, n_pix)
-        px = mi.Float(idx % width)
-        py = mi.Float(idx // width)
+        px, py = self._pixel_xy(idx, width)
 
         # Labels: the ray through each pixel centre; transparent parts count as solid above
         # the label opacity threshold.
@@ -191,16 +193,25 @@ class Renderer:
         normals = dr.select(hit, frame["R_cam_from_body"] @ geo["n"], 0.0)
         dr.eval(depth, part_id, normals)
 
-        radiance = mi.Color3f(0.0)
-        ss = s.supersampling
-        for k in range(s.passes):
-            stratum = k // s.samples_per_pixel
-            pass_index = mi.UInt32(k)
-            stratum_x = mi.Float(float(stratum % ss))
-            stratum_y = mi.Float(float(stratum // ss))
-            dr.make_opaque(pass_index, stratum_x, stratum_y)
-            radiance += self._path(frame, idx, px, py, pass_index, stratum_x, stratum_y)
+        # Passes are traced in launches of up to _LANES_PER_LAUNCH paths: one pass per launch
+        # for large frames (memory stays that of a one-sample frame), many for small ones
+        # (launch overhead). Every launch reuses the same compiled kernel.
+        per_launch = max(1, min(s.passes, _LANES_PER_LAUNCH // n_pix))
+        radiance = dr.zeros(mi.Color3f, n_pix)
+        first = 0
+        while first < s.passes:
+            count = min(per_launch, s.passes - first)
+            first_pass = mi.UInt32(first)
+            dr.make_opaque(first_pass)
+            if count == 1:
+                radiance += self._path(frame, idx, first_pass)
+            else:
+                lanes = dr.arange(mi.UInt32, n_pix * count)
+                pixel = lanes % n_pix
+                value = self._path(frame, pixel, first_pass + lanes // n_pix)
+                dr.scatter_add(radiance, value, pixel)
             dr.eval(radiance)
+            first += count
         radiance = radiance / float(s.passes)
         flat_rad = dr.ravel(radiance)
         flat_n = dr.ravel(normals)
@@ -330,10 +341,16 @@ class Renderer:
             total += factor * band
         return self._surface.diffuse_coefficient(part, active) * (1.0 / math.pi) * total
 
-    def _path(self, frame: dict, idx, px, py, pass_index, stratum_x, stratum_y):
-        """One light path per pixel: radiance estimate, Color3f (W m^-2 sr^-1)."""
+    def _pixel_xy(self, pixel, width: int):
+        mi = self._mi
+        return mi.Float(pixel % width), mi.Float(pixel // width)
+
+    def _path(self, frame: dict, idx, pass_index):
+        """One light path per lane for pixel ``idx`` and pass ``pass_index`` (UInt32):
+        its radiance estimate, Color3f (W m^-2 sr^-1)."""
         mi, dr = self._mi, self._dr
         s = self.settings
+        px, py = self._pixel_xy(idx, frame["width"])
         # Per-pixel random shift of the Kronecker sequence, fixed over the frame's passes.
         # Generators are seeded through TEA hashes of (pixel, frame key[, pass]), so the
         # streams of neighbouring pixels and passes are decorrelated.
@@ -358,8 +375,9 @@ class Renderer:
             jx, jy = mi.Float(0.5), mi.Float(0.5)
         else:
             jx, jy = ld(0), ld(1)
-        ox = (stratum_x + jx) / ss - 0.5
-        oy = (stratum_y + jy) / ss - 0.5
+        stratum = pass_index // s.samples_per_pixel
+        ox = (mi.Float(stratum % s.supersampling) + jx) / ss - 0.5
+        oy = (mi.Float(stratum // s.supersampling) + jy) / ss - 0.5
         geo = self._primary(frame, px + ox, py + oy, lambda layer: rng.next_float32())
 
         surface = self._surface
