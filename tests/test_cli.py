@@ -283,17 +283,27 @@ def test_unknown_satellite_class_exits_2(tmp_path: Path) -> None:
 
 
 def test_bench_prints_json(tmp_path: Path) -> None:
-    result = _satsight("bench", "--frames", "5", "--sizes", "64x64", cwd=tmp_path)
+    result = _satsight(
+        "bench", "--frames", "5", "--sizes", "64x64", "--radiative-sizes", "48x48", cwd=tmp_path
+    )
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["benchmark"] == "render"
     assert report["variant"] in ("llvm_ad_rgb", "cuda_ad_rgb")
-    [entry] = report["results"]
-    assert entry["width_px"] == 64
-    assert entry["height_px"] == 64
-    assert entry["frames_timed"] == 5
-    assert entry["median_s"] > 0
-    assert entry["min_s"] <= entry["median_s"] <= entry["max_s"]
+    stages = [entry["stage"] for entry in report["results"]]
+    assert stages[:3] == [
+        "render_direct_sun",
+        "sun_unshadowed_sh_1_bounce",
+        "sun_sampled_sh_2_bounces",
+    ]
+    assert stages.count("scaling_bounces") == 4 and stages.count("scaling_samples") == 3
+    direct = report["results"][0]
+    assert (direct["width_px"], direct["height_px"], direct["bounces"]) == (64, 64, 0)
+    assert all(entry["width_px"] == 48 for entry in report["results"][1:])
+    for entry in report["results"]:
+        assert entry["frames_timed"] == 5
+        assert entry["median_s"] > 0
+        assert entry["min_s"] <= entry["median_s"] <= entry["max_s"]
 
 
 @pytest.mark.parametrize("sizes", ["64", "64x", "0x64", "axb"])

@@ -184,19 +184,13 @@ class Renderer:
         idx = dr.arange(mi.UInt32, n_pix)
         px, py = self._pixel_xy(idx, width)
 
-        # Labels: the ray through each pixel centre; transparent parts count as solid above
-        # the label opacity threshold.
-        geo = self._primary(frame, px, py, lambda layer: mi.Float(LABEL_OPACITY_THRESHOLD))
-        hit = geo["hit"]
-        depth = dr.select(hit, geo["t"] * geo["d_cam"].z, 0.0)
-        part_id = dr.select(hit, geo["part"] + 1, 0)
-        normals = dr.select(hit, frame["R_cam_from_body"] @ geo["n"], 0.0)
-        dr.eval(depth, part_id, normals)
-
         # Passes are traced in launches of up to _LANES_PER_LAUNCH paths: one pass per launch
         # for large frames (memory stays that of a one-sample frame), many for small ones
         # (launch overhead). Every launch reuses the same compiled kernel.
         per_launch = max(1, min(s.passes, _LANES_PER_LAUNCH // n_pix))
+        # With one pixel-centre pass and no transparency the pass's primary rays are the
+        # label rays: labels and radiance then come from one trace.
+        centre_labels = s.passes == 1 and not self._transparent
         radiance = dr.zeros(mi.Color3f, n_pix)
         first = 0
         while first < s.passes:
@@ -205,6 +199,9 @@ class Renderer:
             dr.make_opaque(first_pass)
             if count == 1:
                 radiance += self._path(frame, idx, first_pass)
+                if centre_labels:
+                    labels = self._labels(frame, self._last_primary)
+                    dr.eval(radiance, *labels)
             else:
                 lanes = dr.arange(mi.UInt32, n_pix * count)
                 pixel = lanes % n_pix
@@ -212,6 +209,12 @@ class Renderer:
                 dr.scatter_add(radiance, value, pixel)
             dr.eval(radiance)
             first += count
+        if not centre_labels:
+            # Labels: the ray through each pixel centre; transparent parts count as solid
+            # above the label opacity threshold.
+            geo = self._primary(frame, px, py, lambda layer: mi.Float(LABEL_OPACITY_THRESHOLD))
+            labels = self._labels(frame, geo)
+        depth, part_id, normals = labels
         radiance = radiance / float(s.passes)
         flat_rad = dr.ravel(radiance)
         flat_n = dr.ravel(normals)
@@ -341,6 +344,15 @@ class Renderer:
             total += factor * band
         return self._surface.diffuse_coefficient(part, active) * (1.0 / math.pi) * total
 
+    def _labels(self, frame: dict, geo: dict):
+        """Depth along +z (m), part id (index + 1, 0 background), camera-frame normals."""
+        dr = self._dr
+        hit = geo["hit"]
+        depth = dr.select(hit, geo["t"] * geo["d_cam"].z, 0.0)
+        part_id = dr.select(hit, geo["part"] + 1, 0)
+        normals = dr.select(hit, frame["R_cam_from_body"] @ geo["n"], 0.0)
+        return depth, part_id, normals
+
     def _pixel_xy(self, pixel, width: int):
         mi = self._mi
         return mi.Float(pixel % width), mi.Float(pixel // width)
@@ -379,6 +391,7 @@ class Renderer:
         ox = (mi.Float(stratum % s.supersampling) + jx) / ss - 0.5
         oy = (mi.Float(stratum // s.supersampling) + jy) / ss - 0.5
         geo = self._primary(frame, px + ox, py + oy, lambda layer: rng.next_float32())
+        self._last_primary = geo  # the label rays when the frame has one centred pass
 
         surface = self._surface
         radiance = mi.Color3f(0.0)

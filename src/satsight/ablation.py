@@ -1,0 +1,213 @@
+"""Ablation of the radiative model, in the manner of the paper's Table 4.
+
+The frames of a scenario are rendered once as a **reference** (the GGX
+metallic/roughness/IOR model of Eq. 18-20 that defines the materials, the exact collimated
+Sun, the sampled environment expanded to SH order 8, the scenario's bounces, many samples
+per pixel) and then with each **variant**, which changes one thing:
+
+* ``improved_phong`` / ``phong``: the reflection model (Eq. 17 / Eq. 16), exact Sun;
+* ``sh3_sun`` / ``sh4_sun``: the Sun replaced by its SH expansion of order 3 / 4 (Eq. 10),
+  the environment truncated to the same order;
+* ``exact``: the reference model itself at the variants' sample count (the noise floor).
+
+Metrics per variant, averaged over frames, on the pixels where either image sees the target:
+
+* MSE of the radiance, (W m^-2 sr^-1)^2, over all three channels;
+* PSNR = 10 log10(peak^2 / MSE) dB with peak = the reference's largest radiance in the frame;
+* mean angular error: the angle in degrees between the RGB radiance vectors of reference
+  and variant, averaged over pixels where both are non-zero (a colour/spectral-angle
+  error, blind to brightness).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.config.scenario import Scenario
+from satsight.errors import SatsightError
+from satsight.render.renderer import Renderer
+from satsight.render.settings import RenderSettings
+
+VARIANTS: dict[str, dict] = {
+    "improved_phong": {"brdf": "improved_phong"},
+    "phong": {"brdf": "phong"},
+    "sh3_sun": {"sun": "sh", "sh_order": 3},
+    "sh4_sun": {"sun": "sh", "sh_order": 4},
+    "exact": {},
+}
+# The environment (earthshine, moonshine) of the reference and of the non-SH variants is
+# expanded to this order; the sh3/sh4 variants truncate Sun and environment alike.
+REFERENCE_SH_ORDER = 8
+METRIC_COLUMNS = ("variant", "mse_w2_m4_sr2", "psnr_db", "mean_angular_error_deg", "frames")
+
+
+@dataclass(frozen=True)
+class FrameMetrics:
+    mse_w2_m4_sr2: float
+    psnr_db: float
+    mean_angular_error_deg: float
+
+
+def image_metrics(reference: np.ndarray, image: np.ndarray) -> FrameMetrics:
+    """MSE, PSNR and mean RGB angular error of ``image`` against ``reference`` (H, W, 3).
+
+    Pixels count where either image is non-zero; the angle needs both non-zero.
+    """
+    ref = np.asarray(reference, dtype=np.float64)
+    img = np.asarray(image, dtype=np.float64)
+    if ref.shape != img.shape or ref.ndim != 3 or ref.shape[-1] != 3:
+        raise SatsightError(f"images must both be (H, W, 3); got {ref.shape} and {img.shape}")
+    ref_norm = np.linalg.norm(ref, axis=-1)
+    img_norm = np.linalg.norm(img, axis=-1)
+    used = (ref_norm > 0) | (img_norm > 0)
+    if not used.any():
+        raise SatsightError("neither image sees the target: nothing to compare")
+    mse = float(np.mean((ref[used] - img[used]) ** 2))
+    peak = float(ref.max())
+    psnr = math.inf if mse == 0.0 else 10.0 * math.log10(peak * peak / mse)
+    both = (ref_norm > 0) & (img_norm > 0)
+    # atan2(|a x b|, a . b) keeps small angles accurate, where arccos would not.
+    a, b = ref[both], img[both]
+    angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1)))
+    return FrameMetrics(mse, psnr, float(angle.mean()) if angle.size else 0.0)
+
+
+def ablation_camera(camera: PinholeCamera, width_px: int | None) -> PinholeCamera:
+    """The scenario's camera with the same field of view on ``width_px`` columns."""
+    if width_px is None or width_px >= camera.width_px:
+        return camera
+    scale = camera.width_px / width_px
+    return PinholeCamera(
+        camera.focal_length_m,
+        camera.pixel_pitch_m * scale,
+        width_px,
+        max(1, round(camera.height_px / scale)),
+    )
+
+
+@dataclass(frozen=True)
+class AblationResult:
+    rows: list[dict]
+    images: dict[str, list[np.ndarray]]  # "reference" and each variant: one image per frame
+
+
+def run_ablation(
+    scenario: Scenario,
+    samples_per_pixel: int = 16,
+    reference_samples_per_pixel: int = 256,
+    width_px: int | None = 384,
+    max_frames: int | None = None,
+    on_render: Callable[[str, int], None] | None = None,
+) -> AblationResult:
+    """Render the reference and every variant for the scenario's frames; see module doc."""
+    from satsight.pipeline import build_light_field, build_target, frame_seed
+
+    if samples_per_pixel < 1 or reference_samples_per_pixel < samples_per_pixel:
+        raise SatsightError(
+            "need 1 <= samples_per_pixel <= reference_samples_per_pixel, got "
+            f"{samples_per_pixel} and {reference_samples_per_pixel}"
+        )
+    mesh = build_target(scenario.target)
+    camera = ablation_camera(scenario.camera.build(), width_px)
+    frames = scenario.frames if max_frames is None else scenario.frames[:max_frames]
+    base = scenario.render.settings().with_(
+        brdf="ggx", sun="delta", environment="sampled", supersampling=1, sh_order=REFERENCE_SH_ORDER
+    )
+    light = build_light_field(
+        scenario.model_copy(
+            update={"render": scenario.render.model_copy(update={"sh_order": REFERENCE_SH_ORDER})}
+        )
+    )
+    runs: dict[str, RenderSettings] = {
+        "reference": base.with_(samples_per_pixel=reference_samples_per_pixel)
+    }
+    for name, change in VARIANTS.items():
+        runs[name] = base.with_(samples_per_pixel=samples_per_pixel, **change)
+    images: dict[str, list[np.ndarray]] = {}
+    for name, settings in runs.items():
+        renderer = Renderer(mesh, settings, scenario.render.variant)
+        images[name] = []
+        for index, frame in enumerate(frames):
+            pose = frame.build().cam_from_body(mesh.center_m)
+            seed = frame_seed(scenario.seed, index) ^ (0 if name == "reference" else 1)
+            image = renderer.render(camera, pose, light, seed=seed)
+            images[name].append(image.radiance_w_m2_sr)
+            if on_render is not None:
+                on_render(name, index)
+    rows = []
+    for name in VARIANTS:
+        pairs = zip(images["reference"], images[name], strict=True)
+        metrics = [image_metrics(r, v) for r, v in pairs]
+        rows.append(
+            {
+                "variant": name,
+                "mse_w2_m4_sr2": float(np.mean([m.mse_w2_m4_sr2 for m in metrics])),
+                "psnr_db": float(np.mean([m.psnr_db for m in metrics])),
+                "mean_angular_error_deg": float(
+                    np.mean([m.mean_angular_error_deg for m in metrics])
+                ),
+                "frames": len(metrics),
+            }
+        )
+    return AblationResult(rows, images)
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    with Path(path).open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=METRIC_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def write_figure(path: Path, result: AblationResult, title: str) -> None:
+    """Bar charts of the three metrics and, per variant, its first frame and error map."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [row["variant"] for row in result.rows]
+    columns = len(names) + 1
+    fig = plt.figure(figsize=(3.0 * columns, 8.5), layout="constrained")
+    grid = fig.add_gridspec(3, columns)
+    for k, (key, label) in enumerate(
+        (
+            ("mse_w2_m4_sr2", "MSE (W m$^{-2}$ sr$^{-1}$)$^2$"),
+            ("psnr_db", "PSNR (dB)"),
+            ("mean_angular_error_deg", "mean angular error (deg)"),
+        )
+    ):
+        ax = fig.add_subplot(grid[0, 2 * k : 2 * k + 2] if 2 * k + 2 <= columns else grid[0, -1])
+        ax.bar(names, [row[key] for row in result.rows], color="tab:blue")
+        ax.set_title(label, fontsize=9)
+        ax.tick_params(axis="x", labelrotation=45, labelsize=8)
+    reference = result.images["reference"][0]
+    peak = float(reference.max()) or 1.0
+
+    def show(ax, image, caption):
+        # One linear scale for all panels (the reference's peak), display gamma 2.2.
+        ax.imshow(np.clip(image / peak, 0.0, 1.0) ** (1.0 / 2.2))
+        ax.set_title(caption, fontsize=8)
+        ax.set_axis_off()
+
+    show(fig.add_subplot(grid[1, 0]), reference, "reference (frame 0)")
+    fig.add_subplot(grid[2, 0]).set_axis_off()
+    for k, name in enumerate(names, start=1):
+        image = result.images[name][0]
+        show(fig.add_subplot(grid[1, k]), image, name)
+        ax = fig.add_subplot(grid[2, k])
+        error = np.linalg.norm(image - reference, axis=-1) / peak
+        shown = ax.imshow(error, cmap="magma", vmin=0.0, vmax=max(0.05, float(error.max())))
+        ax.set_title(f"|{name} - reference| / peak", fontsize=8)
+        ax.set_axis_off()
+        fig.colorbar(shown, ax=ax, shrink=0.7)
+    fig.suptitle(title, fontsize=10)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
