@@ -130,7 +130,18 @@ def _ggx_reference(n, wi, wo, base, metallic, roughness, ior):
     base = np.asarray(base)
     f_m = base + (1 - base) * (1 - cd) ** 5
     f = metallic * f_m + (1 - metallic) * f_d
-    return (1 - metallic) * (1 - f_d) * base / math.pi + f * d * g / (4 * ci * co)
+    # Diffuse light crosses the interface twice: transmittance 1 - F at n.wi and at n.wo.
+    transmitted = (1 - _fresnel(ci, ior)) * (1 - _fresnel(co, ior))
+    return (1 - metallic) * transmitted * base / math.pi + f * d * g / (4 * ci * co)
+
+
+def _fresnel(cos_i: float, ior: float) -> float:
+    """Unpolarised reflectance of a dielectric, from Snell's law and both polarisations."""
+    sin_t = math.sqrt(max(0.0, 1 - cos_i**2)) / ior
+    ct = math.sqrt(1 - sin_t**2)
+    rs = ((cos_i - ior * ct) / (cos_i + ior * ct)) ** 2
+    rp = ((ior * cos_i - ct) / (ior * cos_i + ct)) ** 2
+    return 0.5 * (rs + rp)
 
 
 @pytest.mark.parametrize(

@@ -222,3 +222,36 @@ def test_same_seed_same_bytes_other_seed_other_noise(llvm_variant):
     other = renderer.render(camera, pose, light, seed=2).radiance_w_m2_sr
     assert first.tobytes() == again.tobytes()
     assert not np.array_equal(first, other)
+
+
+@pytest.mark.parametrize("brdf", ["ggx", "improved_phong", "phong"])
+def test_unshadowed_sh_diffuse_equals_sampled_environment_on_a_plate(llvm_variant, brdf):
+    """A plate cannot shadow itself, so the SH convolution of the diffuse part (exact for
+    each model's zonal kernel) plus sampled specular equals fully sampled lighting."""
+    material = Material("paint_like", (0.7, 0.5, 0.3), metallic=0.2, roughness=0.5, ior=1.5)
+    v, f = plate_parts(size_m=2.0)
+    mesh = merge_parts([("plate", material.name, v, f)], {material.name: material}, "plate")
+    rng = np.random.default_rng(3)
+    coeffs = np.zeros((25, 3))
+    coeffs[0] = 10.0 * math.sqrt(4.0 * math.pi)
+    coeffs[1:9] = rng.normal(scale=2.0, size=(8, 3))  # a smooth, positive-enough sky
+    light = LightField(np.array([0.0, 0.0, 1.0]), 0.0, coeffs)
+    passes = 256
+    images = {}
+    for environment in ("sampled", "unshadowed"):
+        settings = RenderSettings(
+            brdf=brdf, environment=environment, bounces=0, samples_per_pixel=passes
+        )
+        images[environment] = Renderer(mesh, settings, llvm_variant).render(
+            SMALL_CAMERA, _camera_above(), light, seed=8
+        )
+    mask = images["sampled"].object_mask
+    sampled = images["sampled"].radiance_w_m2_sr[mask].astype(np.float64)
+    unshadowed = images["unshadowed"].radiance_w_m2_sr[mask].astype(np.float64)
+    # Pixel-to-pixel spread of the sampled estimate bounds the noise of the means.
+    sigma = np.sqrt(sampled.var(axis=0) / len(sampled) + unshadowed.var(axis=0) / len(sampled))
+    difference = unshadowed.mean(axis=0) - sampled.mean(axis=0)
+    assert np.all(np.abs(difference) < Z_LIMIT * sigma + 5e-4 * sampled.mean(axis=0)), (
+        difference,
+        sigma,
+    )

@@ -329,7 +329,7 @@ class Renderer:
             total += frame["env"][k] * y
         return total
 
-    def _diffuse_environment(self, frame: dict, n, part, active):
+    def _diffuse_environment(self, frame: dict, n, wo_local, part, active):
         """Diffuse radiance from the unshadowed environment: kd_eq / pi * sum_l k_l E_l(n)."""
         mi, dr = self._mi, self._dr
         basis = sh.sh_eval_dr(n, self._l_max)
@@ -342,7 +342,8 @@ class Renderer:
                 band += frame["env"][k] * basis[k]
             factor = dr.gather(mi.Float, self._band_factors, part * bands + l, active)
             total += factor * band
-        return self._surface.diffuse_coefficient(part, active) * (1.0 / math.pi) * total
+        kd = self._surface.diffuse_coefficient(part, wo_local, active)
+        return kd * (1.0 / math.pi) * total
 
     def _labels(self, frame: dict, geo: dict):
         """Depth along +z (m), part id (index + 1, 0 background), camera-frame normals."""
@@ -414,7 +415,9 @@ class Renderer:
                 radiance += dr.select(lit, throughput * f * (frame["sun_e"] * wi_local.z), 0.0)
             if s.environment == "unshadowed":
                 radiance += dr.select(
-                    active, throughput * self._diffuse_environment(frame, n, part, active), 0.0
+                    active,
+                    throughput * self._diffuse_environment(frame, n, wo_local, part, active),
+                    0.0,
                 )
             if not need_ray or (depth == s.bounces and not env_on):
                 break

@@ -123,26 +123,41 @@ class SurfaceModel:
         """A light direction wi for viewer direction wo, and its pdf (solid angle)."""
         return self._functions[2](wo, u_lobe, u2, self._at(part, active))
 
-    def diffuse_coefficient(self, part, active):
-        """kd_eq (Color3f): the diffuse part is about kd_eq / pi cos^c(theta_i)."""
-        kd, _ = self._functions[3](self._at(part, active))
+    def diffuse_coefficient(self, part, wo, active):
+        """kd_eq (Color3f) for viewer direction wo: the diffuse part is kd_eq / pi times the
+        part's zonal kernel of theta_i (see ``diffuse_band_factors``) over cos(theta_i)."""
+        params = self._at(part, active)
+        if self.model == "ggx":
+            kd, _ = ggx.ggx_diffuse_coefficient(params, wo)
+        else:
+            kd, _ = self._functions[3](params)
         return kd
 
     def diffuse_band_factors(self, l_max: int) -> np.ndarray:
-        """(parts, l_max + 1) Funk-Hecke factors of each part's diffuse kernel cos^(1+c)+.
+        """(parts, l_max + 1) Funk-Hecke factors of each part's diffuse kernel k(cos theta_i).
 
-        The unshadowed diffuse radiance is kd_eq / pi * sum_lm factor_l L_lm Y_lm(n): for a
-        Lambertian part the factors are the clamped-cosine A_l (irradiance), for the
-        improved Phong diffuse term cos^c(theta_i) those of max(cos, 0)^(1 + c).
+        The unshadowed diffuse radiance is kd_eq / pi * sum_lm factor_l L_lm Y_lm(n), exact
+        for a zonal kernel: max(t, 0) (Lambert, Phong: the factors are the clamped-cosine
+        A_l of the irradiance), (1 - F_d(t)) max(t, 0) for GGX (light entering through the
+        dielectric interface), max(t, 0)^(1 + c) for the improved Phong diffuse term.
         """
-        exponents = [
-            m.diffuse_exponent_c if self.model == "improved_phong" else 0.0 for m in self.materials
-        ]
-        rows = {}
-        for c in set(exponents):
-            if c == 0.0:
-                rows[c] = sh.clamped_cosine_coeffs(l_max)
+        keys = []
+        for m in self.materials:
+            if self.model == "ggx":
+                keys.append(("fresnel", m.ior if m.metallic < 1.0 else 1.0))
+            elif self.model == "improved_phong":
+                keys.append(("power", 1.0 + m.diffuse_exponent_c))
             else:
-                power = 1.0 + c
-                rows[c] = sh.zonal_kernel_coeffs(lambda t, p=power: np.maximum(t, 0.0) ** p, l_max)
-        return np.array([rows[c] for c in exponents])
+                keys.append(("power", 1.0))
+        rows = {}
+        for key in set(keys):
+            kind, value = key
+            if key in (("power", 1.0), ("fresnel", 1.0)):
+                rows[key] = sh.clamped_cosine_coeffs(l_max)
+            elif kind == "power":
+                rows[key] = sh.zonal_kernel_coeffs(
+                    lambda t, p=value: np.maximum(t, 0.0) ** p, l_max
+                )
+            else:
+                rows[key] = sh.zonal_kernel_coeffs(ggx.ggx_diffuse_kernel(value), l_max)
+        return np.array([rows[key] for key in keys])
