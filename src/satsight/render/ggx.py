@@ -288,6 +288,25 @@ def ggx_eval(wi, wo, params: GGXParams):
     return dr.select((cos_i > 0.0) & (cos_o > 0.0), diffuse + specular, 0.0)
 
 
+def ggx_eval_parts(wi, wo, params: GGXParams):
+    """(diffuse, specular) parts of ``ggx_eval`` (Color3f, sr^-1), computed once; their sum
+    is ``ggx_eval``."""
+    cos_i, cos_o, d, cos_d = _vector_terms(wi, wo, params)
+    diffuse, specular = _ggx_parts(
+        cos_i,
+        cos_o,
+        d,
+        cos_d,
+        params.base,
+        params.metallic,
+        params.roughness,
+        params.ior,
+        params.masking,
+    )
+    valid = (cos_i > 0.0) & (cos_o > 0.0)
+    return dr.select(valid, diffuse, 0.0), dr.select(valid, specular, 0.0)
+
+
 def ggx_eval_specular(wi, wo, params: GGXParams):
     """Specular part F D G / (4 cos_i cos_o) of ``ggx_eval`` (Color3f, sr^-1)."""
     cos_i, cos_o, d, cos_d = _vector_terms(wi, wo, params)

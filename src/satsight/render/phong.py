@@ -421,6 +421,13 @@ def phong_eval(wi, wo, params: PhongParams):
     return dr.select(_valid(wi, wo), params.kd * INV_PI + params.ks * lobe, 0.0)
 
 
+def phong_eval_parts(wi, wo, params: PhongParams):
+    """(diffuse, specular) parts of ``phong_eval`` (Color3f, sr^-1); their sum is the BRDF."""
+    lobe, _ = _phong_lobe(wi, wo, params.g)
+    valid = _valid(wi, wo)
+    return dr.select(valid, params.kd * INV_PI, 0.0), dr.select(valid, params.ks * lobe, 0.0)
+
+
 def phong_sample(wo, u_lobe, u2, params: PhongParams):
     """Light direction wi for the viewer direction wo, and its density (sr^-1).
 
@@ -463,6 +470,14 @@ def improved_phong_eval(wi, wo, params: ImprovedPhongParams):
     diffuse = params.kd * (INV_PI * safe_power(dr.maximum(wi.z, 0.0), params.c))
     specular = params.ks * _improved_lobe(wi, wo, params)
     return dr.select(_valid(wi, wo), diffuse + specular, 0.0)
+
+
+def improved_phong_eval_parts(wi, wo, params: ImprovedPhongParams):
+    """(diffuse, specular) parts of ``improved_phong_eval`` (Color3f, sr^-1)."""
+    valid = _valid(wi, wo)
+    diffuse = params.kd * (INV_PI * safe_power(dr.maximum(wi.z, 0.0), params.c))
+    specular = params.ks * _improved_lobe(wi, wo, params)
+    return dr.select(valid, diffuse, 0.0), dr.select(valid, specular, 0.0)
 
 
 def improved_phong_sample(wo, u_lobe, u2, params: ImprovedPhongParams):

@@ -62,21 +62,10 @@ class SurfaceModel:
                 np.array([m.diffuse_exponent_c for m in materials]),
             )
         self._functions = {
-            "ggx": (
-                ggx.ggx_eval,
-                ggx.ggx_eval_specular,
-                ggx.ggx_sample,
-                ggx.ggx_diffuse_coefficient,
-            ),
-            "phong": (
-                phong.phong_eval,
-                phong.phong_eval_specular,
-                phong.phong_sample,
-                phong.phong_diffuse_coefficient,
-            ),
+            "ggx": (ggx.ggx_eval_parts, ggx.ggx_sample, None),
+            "phong": (phong.phong_eval_parts, phong.phong_sample, phong.phong_diffuse_coefficient),
             "improved_phong": (
-                phong.improved_phong_eval,
-                phong.improved_phong_eval_specular,
+                phong.improved_phong_eval_parts,
                 phong.improved_phong_sample,
                 phong.improved_phong_diffuse_coefficient,
             ),
@@ -98,8 +87,9 @@ class SurfaceModel:
             if not isinstance(getattr(self._params, f.name), str)
         ]
 
-    def _at(self, part, active):
-        """The parameter container with each field gathered for the lanes' parts."""
+    def at(self, part, active):
+        """The model's parameter container with each field gathered for the lanes' parts;
+        gather once per surface hit and pass it to the calls below."""
         import dataclasses
 
         import drjit as dr
@@ -111,26 +101,21 @@ class SurfaceModel:
         return dataclasses.replace(self._params, **changes)
 
     # --- what the integrator calls ------------------------------------------------------
-    def eval(self, part, wi, wo, active):
-        """f_r(wi, wo) in sr^-1 per channel (Color3f)."""
-        return self._functions[0](wi, wo, self._at(part, active))
+    def eval_parts(self, params, wi, wo):
+        """(diffuse, specular) parts of f_r(wi, wo), sr^-1 per channel (Color3f each)."""
+        return self._functions[0](wi, wo, params)
 
-    def eval_specular(self, part, wi, wo, active):
-        """The specular (non-diffuse) part of f_r, sr^-1 per channel (Color3f)."""
-        return self._functions[1](wi, wo, self._at(part, active))
-
-    def sample(self, part, wo, u_lobe, u2, active):
+    def sample(self, params, wo, u_lobe, u2):
         """A light direction wi for viewer direction wo, and its pdf (solid angle)."""
-        return self._functions[2](wo, u_lobe, u2, self._at(part, active))
+        return self._functions[1](wo, u_lobe, u2, params)
 
-    def diffuse_coefficient(self, part, wo, active):
+    def diffuse_coefficient(self, params, wo):
         """kd_eq (Color3f) for viewer direction wo: the diffuse part is kd_eq / pi times the
         part's zonal kernel of theta_i (see ``diffuse_band_factors``) over cos(theta_i)."""
-        params = self._at(part, active)
         if self.model == "ggx":
             kd, _ = ggx.ggx_diffuse_coefficient(params, wo)
         else:
-            kd, _ = self._functions[3](params)
+            kd, _ = self._functions[2](params)
         return kd
 
     def diffuse_band_factors(self, l_max: int) -> np.ndarray:
