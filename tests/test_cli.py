@@ -44,6 +44,8 @@ TOP_LEVEL_KEYS = {
     "conventions",
     "camera",
     "sun",
+    "render_settings",
+    "environment_light",
     "target",
     "frames",
 }

@@ -6,6 +6,7 @@ shell over it.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Callable
@@ -183,6 +184,15 @@ def run_scenario(
                 "sun": {
                     "direction_body": sun.direction_body.tolist(),
                     "irradiance_w_m2": sun.irradiance_w_m2,
+                    "spectrum": scenario.sun.spectrum,
+                    "band_nm": list(scenario.sun.band_nm),
+                },
+                "render_settings": dataclasses.asdict(renderer.settings),
+                "environment_light": {
+                    "description": "earthshine and moonshine as real SH, index l(l+1)+m, "
+                    "body frame, direction towards the source",
+                    "sh_order": light.l_max,
+                    "sh_radiance_w_m2_sr": light.sh_radiance_w_m2_sr.tolist(),
                 },
                 "target": {
                     **mesh.summary(),

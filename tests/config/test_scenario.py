@@ -13,6 +13,7 @@ import yaml
 from satsight.camera.pinhole import PinholeCamera
 from satsight.cli import example_scenario_path
 from satsight.config.scenario import (
+    EARTH_RADIUS_M,
     CameraConfig,
     FrameConfig,
     Scenario,
@@ -221,3 +222,62 @@ def test_frame_build_converts_km_and_degrees() -> None:
     assert view.azimuth_rad == pytest.approx(math.pi / 2, abs=ATOL)
     assert view.elevation_rad == pytest.approx(-math.pi / 6, abs=ATOL)
     assert view.roll_rad == pytest.approx(math.pi / 4, abs=ATOL)
+
+
+# --- light and render settings -----------------------------------------------------------------
+def test_sun_irradiance_comes_from_the_spectrum_over_the_band() -> None:
+    """Defaults: ASTM E-490 over 450-900 nm at 1 AU (about 671.5 W m^-2); the 5778 K black
+    body scaled to 1366.1 W m^-2 gives about 648.7 W m^-2; inverse square in distance."""
+    e490 = SunConfig().in_band_irradiance_w_m2
+    assert e490 == pytest.approx(671.5, rel=5e-3)
+    blackbody = SunConfig(spectrum="blackbody_5778k").in_band_irradiance_w_m2
+    assert blackbody == pytest.approx(648.7, rel=5e-3)
+    assert SunConfig(distance_au=2.0).in_band_irradiance_w_m2 == pytest.approx(e490 / 4.0)
+    assert SunConfig(irradiance_w_m2=500.0).build().irradiance_w_m2 == 500.0
+
+
+def test_reversed_band_names_the_key() -> None:
+    message = _error_lines(_minimal(sun={"band_nm": [900, 450]}))
+    assert "sun" in message and "band_nm" in message
+
+
+def test_earth_and_moon_positions_in_metres() -> None:
+    scenario = parse_scenario(
+        _minimal(
+            earth={"azimuth_deg": 0.0, "elevation_deg": -90.0, "altitude_km": 500.0},
+            moon={"azimuth_deg": 90.0, "elevation_deg": 0.0, "distance_km": 384400.0},
+        )
+    )
+    earth = scenario.earth.center_from_target_m()
+    np.testing.assert_allclose(earth, [0.0, 0.0, -(EARTH_RADIUS_M + 5e5)], atol=1e-6)
+    np.testing.assert_allclose(scenario.moon.center_from_target_m(), [0, 3.844e8, 0], atol=1e-3)
+
+
+def test_render_block_builds_render_settings() -> None:
+    scenario = parse_scenario(
+        _minimal(
+            render={
+                "brdf": "improved_phong",
+                "sh_order": 6,
+                "sun_model": "sh",
+                "environment": "unshadowed",
+                "bounces": 3,
+                "samples_per_pixel": 8,
+            }
+        )
+    )
+    settings = scenario.render.settings()
+    assert (settings.brdf, settings.sh_order, settings.sun) == ("improved_phong", 6, "sh")
+    assert (settings.environment, settings.bounces, settings.samples_per_pixel) == (
+        "unshadowed",
+        3,
+        8,
+    )
+
+
+@pytest.mark.parametrize(
+    ("render", "key"),
+    [({"brdf": "blinn"}, "render.brdf"), ({"sh_order": 9}, "render.sh_order")],
+)
+def test_bad_render_settings_name_the_key(render, key) -> None:
+    assert key in _error_lines(_minimal(render=render))

@@ -345,12 +345,13 @@ class Renderer:
         return geo
 
     def _environment_radiance(self, frame: dict, direction):
-        """L_env along ``direction`` (towards the source) from the SH coefficients."""
+        """L_env along ``direction`` (towards the source) from the SH coefficients, clamped
+        at 0: a truncated expansion rings below zero away from bright sources."""
         basis = sh.sh_eval_dr(direction, self._l_max)
         total = self._mi.Color3f(0.0)
         for k, y in enumerate(basis):
             total += frame["env"][k] * y
-        return total
+        return self._dr.maximum(total, 0.0)
 
     def _diffuse_environment(self, frame: dict, n, wo_local, params, part, active):
         """Diffuse radiance from the unshadowed environment: kd_eq / pi * sum_l k_l E_l(n)."""
@@ -366,7 +367,8 @@ class Renderer:
             factor = dr.gather(mi.Float, self._band_factors, part * bands + l, active)
             total += factor * band
         kd = self._surface.diffuse_coefficient(params, wo_local)
-        return kd * (1.0 / math.pi) * total
+        # Clamped at 0 like the radiance: the truncated expansion can ring below zero.
+        return kd * (1.0 / math.pi) * dr.maximum(total, 0.0)
 
     def _labels(self, frame: dict, geo: dict):
         """Depth along +z (m), part id (index + 1, 0 background), camera-frame normals."""
