@@ -225,6 +225,24 @@ def sample_directions(sample_fn, params, w_fixed: np.ndarray, n: int, seed: int)
     return to_numpy(d), to_numpy(pdf)
 
 
+def check_sample_density_is_pdf(sample_fn, pdf_fn, params, wo: np.ndarray, seed: int) -> None:
+    """For per-lane viewer directions wo (n, 3): sampled wi are unit vectors, the density a
+    sampler returns equals pdf_fn at the same wi, and it is 0 exactly below the horizon."""
+    import mitsuba as mi
+
+    n = len(wo)
+    u = np.random.default_rng(seed).random((n, 3), dtype=np.float32)
+    wi, pdf = sample_fn(to_vector3f(wo), mi.Float(u[:, 0]), mi.Point2f(u[:, 1], u[:, 2]), params)
+    wi, pdf = to_numpy(wi), to_numpy(pdf)
+    np.testing.assert_allclose(np.linalg.norm(wi, axis=1), 1.0, atol=1e-5)
+    np.testing.assert_allclose(
+        pdf, to_numpy(pdf_fn(to_vector3f(wi), to_vector3f(wo), params)), rtol=1e-5
+    )
+    below = (wi[:, 2] <= 0.0) | (wo[:, 2] <= 0.0)
+    assert np.all(pdf[below] == 0.0)
+    assert np.all(pdf[~below] > 0.0)
+
+
 def pdf_callable(pdf_fn, params, w_fixed: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """numpy callable dirs -> pdf_fn(dirs, w_fixed, params)."""
 

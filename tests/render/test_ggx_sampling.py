@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from chi2_helpers import (
+    check_sample_density_is_pdf,
     chi2_direction_test,
     direction,
     hemisphere_quadrature_around,
@@ -311,7 +312,6 @@ def test_sampler_follows_its_pdf(base, metallic, roughness, ior, masking, theta_
 
 
 def test_sample_returns_the_density_of_pdf() -> None:
-    import mitsuba as mi
 
     rng = np.random.default_rng(46)
     n = 20000
@@ -320,14 +320,7 @@ def test_sample_returns_the_density_of_pdf() -> None:
     params = GGXParams.from_values(
         rng.uniform(0, 1, (n, 3)), rng.uniform(0, 1, n), rng.uniform(0, 1, n), 1.5
     )
-    u = rng.random((n, 3), dtype=np.float32)
-    wi, pdf = ggx_sample(_vec(wo), mi.Float(u[:, 0]), mi.Point2f(u[:, 1], u[:, 2]), params)
-    wi, pdf = _np(wi), _np(pdf)
-    np.testing.assert_allclose(np.linalg.norm(wi, axis=1), 1.0, atol=1e-5)
-    np.testing.assert_allclose(pdf, _np(ggx_pdf(_vec(wi), _vec(wo), params)), rtol=1e-5)
-    below = (wi[:, 2] <= 0.0) | (wo[:, 2] <= 0.0)
-    assert np.all(pdf[below] == 0.0)
-    assert np.all(pdf[~below] > 0.0)
+    check_sample_density_is_pdf(ggx_sample, ggx_pdf, params, wo, seed=46)
 
 
 @pytest.mark.parametrize(

@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from chi2_helpers import (
+    check_sample_density_is_pdf,
     chi2_direction_test,
     direction,
     hemisphere_integral,
@@ -360,7 +361,6 @@ def test_sampler_follows_its_pdf(model, kd, ks, g, a, b, c, theta_deg, seed) -> 
 
 @pytest.mark.parametrize("model", ["phong", "improved"])
 def test_sample_returns_the_density_of_pdf(model) -> None:
-    import mitsuba as mi
 
     rng = np.random.default_rng(21)
     n = 20000
@@ -372,14 +372,7 @@ def test_sample_returns_the_density_of_pdf(model) -> None:
         g = rng.choice([1.0, 8.0, 60.0, 3000.0], n)  # a few lobes, each normalised once
         params = ImprovedPhongParams.from_values(kd, ks, g, 0.5, 1.0, 1.0)
     sample_fn, pdf_fn = _functions(model)
-    u = rng.random((n, 3), dtype=np.float32)
-    wi, pdf = sample_fn(_vec(wo), mi.Float(u[:, 0]), mi.Point2f(u[:, 1], u[:, 2]), params)
-    wi, pdf = _np(wi), _np(pdf)
-    np.testing.assert_allclose(np.linalg.norm(wi, axis=1), 1.0, atol=1e-5)
-    np.testing.assert_allclose(pdf, _np(pdf_fn(_vec(wi), _vec(wo), params)), rtol=1e-5)
-    below = (wi[:, 2] <= 0.0) | (wo[:, 2] <= 0.0)
-    assert np.all(pdf[below] == 0.0)
-    assert np.all(pdf[~below] > 0.0)
+    check_sample_density_is_pdf(sample_fn, pdf_fn, params, wo, seed=21)
 
 
 @pytest.mark.parametrize(

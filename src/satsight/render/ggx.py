@@ -273,19 +273,8 @@ def ggx_eval(wi, wo, params: GGXParams):
     float32 precision for the narrowest lobes (a down to MIN_GGX_ALPHA).
     Zero where wi.z <= 0 or wo.z <= 0.
     """
-    cos_i, cos_o, d, cos_d = _vector_terms(wi, wo, params)
-    diffuse, specular = _ggx_parts(
-        cos_i,
-        cos_o,
-        d,
-        cos_d,
-        params.base,
-        params.metallic,
-        params.roughness,
-        params.ior,
-        params.masking,
-    )
-    return dr.select((cos_i > 0.0) & (cos_o > 0.0), diffuse + specular, 0.0)
+    diffuse, specular = ggx_eval_parts(wi, wo, params)
+    return diffuse + specular
 
 
 def ggx_eval_parts(wi, wo, params: GGXParams):
@@ -309,19 +298,7 @@ def ggx_eval_parts(wi, wo, params: GGXParams):
 
 def ggx_eval_specular(wi, wo, params: GGXParams):
     """Specular part F D G / (4 cos_i cos_o) of ``ggx_eval`` (Color3f, sr^-1)."""
-    cos_i, cos_o, d, cos_d = _vector_terms(wi, wo, params)
-    _, specular = _ggx_parts(
-        cos_i,
-        cos_o,
-        d,
-        cos_d,
-        params.base,
-        params.metallic,
-        params.roughness,
-        params.ior,
-        params.masking,
-    )
-    return dr.select((cos_i > 0.0) & (cos_o > 0.0), specular, 0.0)
+    return ggx_eval_parts(wi, wo, params)[1]
 
 
 def _f0_dielectric(ior):
