@@ -255,3 +255,18 @@ def test_unshadowed_sh_diffuse_equals_sampled_environment_on_a_plate(llvm_varian
         difference,
         sigma,
     )
+
+
+def test_regularized_material_is_only_ever_rougher():
+    from satsight.render.surface import regularized
+
+    glossy = Material("lens_like", (0.1, 0.1, 0.1), metallic=0.0, roughness=0.02, ior=1.46)
+    rough = Material("paint_like", (0.8, 0.8, 0.8), metallic=0.0, roughness=0.8, ior=1.5)
+    fixed_g = Material("fixed_gloss", (0.5, 0.5, 0.5), 0.5, 0.1, 1.5, gloss_exponent_g=5000.0)
+    assert regularized(glossy, 0.35).roughness == 0.35
+    assert regularized(glossy, 0.35).ior == glossy.ior
+    assert regularized(rough, 0.35) is rough
+    capped = regularized(fixed_g, 0.35)
+    assert capped.gloss_exponent_g == pytest.approx(capped.phong_gloss_exponent)
+    assert capped.gloss_exponent_g < 5000.0
+    assert regularized(glossy, 0.0) is glossy

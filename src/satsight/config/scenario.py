@@ -181,6 +181,7 @@ class RenderConfig(_Strict):
     bounces: int = Field(default=2, ge=0, le=16)
     samples_per_pixel: int = Field(default=1, ge=1, le=4096)
     supersampling: int = Field(default=1, ge=1, le=8)
+    indirect_min_roughness: float = Field(default=0.35, ge=0.0, le=1.0)
     variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
 
     def settings(self) -> RenderSettings:
@@ -193,6 +194,7 @@ class RenderConfig(_Strict):
             bounces=self.bounces,
             samples_per_pixel=self.samples_per_pixel,
             supersampling=self.supersampling,
+            indirect_min_roughness=self.indirect_min_roughness,
         )
 
 

@@ -43,7 +43,7 @@ from satsight.lighting.light_field import LightField
 from satsight.render.backend import use_variant
 from satsight.render.buffers import RadianceImage
 from satsight.render.settings import RenderSettings
-from satsight.render.surface import SurfaceModel
+from satsight.render.surface import SurfaceModel, regularized
 from satsight.scene.mesh import TargetMesh
 
 # Shadow- and bounce-ray origin offset along the normal, relative to the target's size.
@@ -116,6 +116,11 @@ class Renderer:
         self._transparent = bool(np.any(opacity < 1.0))
         self._part_opacity = mi.Float(opacity)
         self._surface = SurfaceModel(materials, self.settings)
+        # Surfaces reached by a bounce: roughness floored (path regularisation).
+        self._surface_indirect = SurfaceModel(
+            [regularized(m, self.settings.indirect_min_roughness) for m in materials],
+            self.settings,
+        )
         # Diffuse environment kernel per part and SH band (see SurfaceModel.diffuse_kernel).
         self._l_max = self.settings.sh_order
         kernel = self._surface.diffuse_band_factors(self._l_max)  # (parts, l_max + 1)
@@ -130,6 +135,7 @@ class Renderer:
             self._band_factors,
         )
         self._surface.evaluate_tables()
+        self._surface_indirect.evaluate_tables()
         self._ray_offset_m = max(_MIN_RAY_OFFSET_M, _RAY_OFFSET_PER_M * mesh.bounding_radius_m)
         self._n_dims = 2 + 3 * (self.settings.bounces + 1)
         self._generators = _kronecker_generators(self._n_dims)
@@ -438,6 +444,8 @@ class Renderer:
             shading = mi.Frame3f(n)
             wo_local = shading.to_local(wo)
             origin = p + n * eps
+            if depth == 1:
+                surface = self._surface_indirect
             params = surface.at(part, active)  # gathered once per surface hit
             if s.sun == "delta":
                 wi = frame["sun_dir"]

@@ -42,7 +42,10 @@ class RenderSettings:
     only). samples_per_pixel: light paths per pixel and sub-pixel position.
     supersampling: s gives s x s stratified sub-pixel positions; labels always come from
     the pixel centre. max_transparent_layers: surfaces with opacity alpha < 1 a ray may
-    pass through before it stops.
+    pass through before it stops. indirect_min_roughness: path regularisation (Kaplanyan &
+    Dachsbacher 2013): at surfaces reached by a bounce, the roughness is at least this
+    (0 turns it off), which turns the rare, very bright Sun caustics through mirror-like
+    parts into soft glossy inter-reflection instead of single-pixel outliers.
     """
 
     brdf: BrdfModel = "ggx"
@@ -54,6 +57,7 @@ class RenderSettings:
     samples_per_pixel: int = 1
     supersampling: int = 1
     max_transparent_layers: int = 4
+    indirect_min_roughness: float = 0.35
 
     def __post_init__(self) -> None:
         problems = []
@@ -76,6 +80,8 @@ class RenderSettings:
             problems.append("supersampling must be an integer in [1, 8]")
         if not (1 <= self.max_transparent_layers <= MAX_TRANSPARENT_LAYERS):
             problems.append(f"max_transparent_layers must be in [1, {MAX_TRANSPARENT_LAYERS}]")
+        if not (0.0 <= self.indirect_min_roughness <= 1.0):
+            problems.append("indirect_min_roughness must be in [0, 1]")
         if problems:
             raise SatsightError("render settings: " + "; ".join(problems))
 

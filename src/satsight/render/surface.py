@@ -9,6 +9,7 @@ towards the light and ``wo`` towards the viewer.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -25,6 +26,18 @@ def _phong_tables(materials: Sequence[Material]) -> dict[str, np.ndarray]:
         "ks": np.array([m.ks_rgb for m in materials]),
         "g": np.array([m.phong_gloss_exponent for m in materials]),
     }
+
+
+def regularized(material: Material, min_roughness: float) -> Material:
+    """The material with its roughness raised to ``min_roughness`` (and an explicit Phong
+    gloss exponent capped at the matching value); unchanged when already rougher."""
+    if material.roughness >= min_roughness:
+        return material
+    rougher = dataclasses.replace(material, roughness=min_roughness, gloss_exponent_g=None)
+    if material.gloss_exponent_g is not None:
+        cap = rougher.phong_gloss_exponent
+        rougher = dataclasses.replace(rougher, gloss_exponent_g=min(material.gloss_exponent_g, cap))
+    return rougher
 
 
 class SurfaceModel:
@@ -79,8 +92,6 @@ class SurfaceModel:
         dr.eval(*fields)
 
     def _field_names(self) -> list[str]:
-        import dataclasses
-
         return [
             f.name
             for f in dataclasses.fields(self._params)
@@ -90,8 +101,6 @@ class SurfaceModel:
     def at(self, part, active):
         """The model's parameter container with each field gathered for the lanes' parts;
         gather once per surface hit and pass it to the calls below."""
-        import dataclasses
-
         import drjit as dr
 
         changes = {}
