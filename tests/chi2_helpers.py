@@ -243,6 +243,23 @@ def check_sample_density_is_pdf(sample_fn, pdf_fn, params, wo: np.ndarray, seed:
     assert np.all(pdf[~below] > 0.0)
 
 
+def check_pdf_integral_is_valid_fraction(
+    sample_fn, pdf_fn, params, wo: np.ndarray, lobe_width: float, seed: int, atol: float, **quad
+) -> float:
+    """The pdf integrated over the hemisphere (quadrature around the mirror direction of
+    wo, of the given lobe width) is at most 1 and equals the fraction of samples that land
+    above the horizon, within 5 binomial standard deviations plus ``atol``. Returns it."""
+    dirs, weights = hemisphere_quadrature_around(mirror(wo), lobe_width, **quad)
+    integral = float(np.dot(pdf_callable(pdf_fn, params, wo)(dirs), weights))
+    n = 200_000
+    _, pdf = sample_directions(sample_fn, params, wo, n, seed=seed)
+    valid = np.count_nonzero(pdf > 0.0) / n
+    sigma = math.sqrt(max(valid * (1.0 - valid), 1.0 / n) / n)
+    assert integral <= 1.0 + 1e-4
+    assert abs(integral - valid) <= 5.0 * sigma + atol, (integral, valid)
+    return integral
+
+
 def pdf_callable(pdf_fn, params, w_fixed: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """numpy callable dirs -> pdf_fn(dirs, w_fixed, params)."""
 

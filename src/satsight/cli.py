@@ -25,6 +25,17 @@ def example_scenario_path() -> Path:
     return Path(str(resources.files("satsight") / "examples" / "first_light.yaml"))
 
 
+def _progress() -> Progress:
+    """A progress bar on standard error: description, bar, done/total, elapsed time."""
+    return Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+    )
+
+
 def _generate(config_path: Path, out_dir: Path, overwrite: bool) -> None:
     from satsight.config.scenario import load_scenario
     from satsight.pipeline import run_scenario
@@ -33,15 +44,8 @@ def _generate(config_path: Path, out_dir: Path, overwrite: bool) -> None:
     console.print(
         f"[bold]satsight[/bold]: scenario '{scenario.name}', {len(scenario.frames)} frames"
     )
-    with Progress(
-        TextColumn("rendering"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=False,
-    ) as progress:
-        task = progress.add_task("frames", total=len(scenario.frames))
+    with _progress() as progress:
+        task = progress.add_task("rendering", total=len(scenario.frames))
         summary = run_scenario(
             scenario,
             out_dir,
@@ -156,13 +160,7 @@ def ablate(
     if reference_spp < spp:
         raise SatsightError(f"--reference-spp ({reference_spp}) must be >= --spp ({spp})")
     frames = len(scenario.frames) if max_frames is None else min(max_frames, len(scenario.frames))
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-    ) as progress:
+    with _progress() as progress:
         task = progress.add_task("ablation renders", total=frames * (len(VARIANTS) + 1))
         result = run_ablation(
             scenario,
