@@ -185,6 +185,8 @@ class Renderer:
             "env": [mi.Color3f(*(float(v) for v in row)) for row in env],
         }
         dr.make_opaque(*(v for k, v in frame.items() if k not in ("env", "width")), *frame["env"])
+        if s.environment == "unshadowed":
+            frame["diffuse_env"] = self._diffuse_environment_table(frame)
 
         n_pix = width * height
         idx = dr.arange(mi.UInt32, n_pix)
@@ -192,7 +194,7 @@ class Renderer:
 
         # Passes are traced in launches of up to _LANES_PER_LAUNCH paths: one pass per launch
         # for large frames (memory stays that of a one-sample frame), many for small ones
-        # (launch overhead). Every launch reuses the same compiled kernel.
+        # (launch overhead). Every launch reuses the same compiled kernels.
         per_launch = max(1, min(s.passes, _LANES_PER_LAUNCH // n_pix))
         # With one pixel-centre pass and no transparency the pass's primary rays are the
         # label rays: labels and radiance then come from one trace.
@@ -202,41 +204,46 @@ class Renderer:
         # runs on those lanes alone (a target covering 5 % of the frame costs 5 %).
         compact = s.environment != "off" or s.sun == "sh" or s.bounces > 0
         radiance = dr.zeros(mi.Color3f, n_pix)
+        labels: tuple = ()
         first = 0
         while first < s.passes:
             count = min(per_launch, s.passes - first)
             first_pass = mi.UInt32(first)
             dr.make_opaque(first_pass)
+            # Each path adds its radiance to its own lane of ``lane_sum`` (no two paths of a
+            # kernel share one, so no atomic operations); with several passes per launch the
+            # lanes are pixel-major and each pixel's block is summed in a fixed order, so
+            # the same seed gives the same bytes.
             if count == 1:
                 pixel, pass_index = idx, first_pass
+                lane_sum = radiance
             else:
                 lanes = dr.arange(mi.UInt32, n_pix * count)
-                pixel, pass_index = lanes % n_pix, first_pass + lanes // n_pix
+                pixel, pass_index = lanes // count, first_pass + lanes % count
+                lane_sum = dr.zeros(mi.Color3f, n_pix * count)
+            geo = self._pass_primary(frame, pixel, pass_index)
+            geo["lane"] = pixel if count == 1 else lanes
+            if centre_labels:
+                labels = self._labels(frame, geo)
             if compact:
-                geo, _, _ = self._pass_primary(frame, pixel, pass_index)
-                if centre_labels:
-                    labels = self._labels(frame, geo)
-                    dr.eval(geo["hit"], *labels)
+                hits = {k: geo[k] for k in ("face", "u", "v")}
+                dr.eval(geo["hit"], *hits.values(), *labels)
                 selected = dr.compress(geo["hit"])
                 if dr.width(selected) > 0:
+                    pixel = dr.gather(mi.UInt32, pixel, selected)
+                    lane = pixel
                     if count > 1:
-                        pixel = dr.gather(mi.UInt32, pixel, selected)
                         pass_index = dr.gather(mi.UInt32, pass_index, selected)
-                    else:
-                        pixel = selected
-                        pass_index = dr.full(mi.UInt32, first, dr.width(selected))
-                        dr.make_opaque(pass_index)
-                    value = self._path(frame, pixel, pass_index)
-                    dr.scatter_add(radiance, value, pixel)
-            elif count == 1:
-                value = self._path(frame, pixel, pass_index)
-                if centre_labels:
-                    labels = self._labels(frame, self._last_primary)
-                    dr.eval(value, *labels)
-                radiance += value
+                        lane = dr.gather(mi.UInt32, lanes, selected)
+                    hits = {k: dr.gather(type(v), v, selected) for k, v in hits.items()}
+                    geo = self._pass_primary(frame, pixel, pass_index, hits)
+                    geo["lane"] = lane
+                    self._trace(frame, geo, lane_sum)
             else:
-                dr.scatter_add(radiance, self._path(frame, pixel, pass_index), pixel)
-            dr.eval(radiance)
+                self._trace(frame, geo, lane_sum)
+            if count > 1:
+                radiance += dr.block_sum(lane_sum, count)
+            dr.eval(radiance, *labels)
             first += count
         if not centre_labels:
             # Labels: the ray through each pixel centre; transparent parts count as solid
@@ -244,7 +251,8 @@ class Renderer:
             geo = self._primary(frame, px, py, lambda layer: mi.Float(LABEL_OPACITY_THRESHOLD))
             labels = self._labels(frame, geo)
         depth, part_id, normals = labels
-        radiance = radiance / float(s.passes)
+        if s.passes > 1:
+            radiance = radiance / float(s.passes)
         flat_rad = dr.ravel(radiance)
         flat_n = dr.ravel(normals)
         dr.eval(flat_rad, flat_n)
@@ -275,11 +283,10 @@ class Renderer:
         gap = np.linalg.norm(camera_render_m) - self.mesh.bounding_radius_m
         return float(max(0.0, gap - margin_m))
 
-    def _surface_at(self, pi, active) -> dict:
-        """Hit point (from barycentrics), unit geometric normal and part of a hit."""
+    def _surface_at(self, face, u, v, active) -> dict:
+        """Hit point (from the barycentrics u, v on triangle ``face``), unit geometric
+        normal and part of a hit, with the hit's face, u and v."""
         mi, dr = self._mi, self._dr
-        face = pi.prim_index
-        u, v = pi.prim_uv.x, pi.prim_uv.y
         p = (
             dr.gather(mi.Vector3f, self._face_v0, face, active)
             + u * dr.gather(mi.Vector3f, self._face_e1, face, active)
@@ -289,20 +296,24 @@ class Renderer:
             "p": p,
             "n_geo": dr.gather(mi.Vector3f, self._face_n, face, active),
             "part": dr.gather(mi.UInt32, self._face_part, face, active),
+            "face": face,
+            "u": u,
+            "v": v,
         }
 
     def _intersect(self, origin, direction, active, opacity_sample, coherent=False) -> dict:
         """First surface along a ray that the ray does not pass through.
 
         opacity_sample(layer) -> Float in [0, 1): a surface of opacity alpha stops the ray
-        where the sample is < alpha. Returns hit, t (from ``origin``), p, n_geo, part.
+        where the sample is < alpha. Returns hit, t (from ``origin``) and the surface
+        (see ``_surface_at``).
         """
         mi, dr = self._mi, self._dr
         pi = self._scene.ray_intersect_preliminary(
             mi.Ray3f(origin, direction), coherent=coherent, active=active
         )
         hit = active & pi.is_valid()
-        surf = self._surface_at(pi, hit)
+        surf = self._surface_at(pi.prim_index, pi.prim_uv.x, pi.prim_uv.y, hit)
         t = dr.select(hit, pi.t, 0.0)
         if not self._transparent:
             return {"hit": hit, "t": t, **surf}
@@ -315,9 +326,9 @@ class Renderer:
                 mi.Ray3f(step_origin, direction), coherent=coherent, active=moving
             )
             again = moving & pi.is_valid()
-            nxt = self._surface_at(pi, again)
+            nxt = self._surface_at(pi.prim_index, pi.prim_uv.x, pi.prim_uv.y, again)
             t_next = dr.dot(step_origin - origin, direction) + pi.t
-            for key in ("p", "n_geo", "part"):
+            for key in nxt:
                 surf[key] = dr.select(again, nxt[key], surf[key])
             t = dr.select(again, t_next, t)
             opaque = opacity_sample(layer) < dr.gather(mi.Float, self._part_opacity, nxt["part"])
@@ -332,20 +343,28 @@ class Renderer:
         blocked = self._intersect(origin, direction, active, lambda layer: rng.next_float32())
         return ~blocked["hit"]
 
-    def _primary(self, frame: dict, px, py, opacity_sample) -> dict:
-        """Primary rays through pixel positions (px, py) and the surfaces they stop at."""
+    def _primary(self, frame: dict, px, py, opacity_sample, hits: dict | None = None) -> dict:
+        """Primary rays through pixel positions (px, py) and the surfaces they stop at.
+
+        hits: the rays' surfaces (face, u, v) found by an earlier trace of the same rays,
+        which are then not traced again (and have no ``t``).
+        """
         mi, dr = self._mi, self._dr
         d_cam = dr.normalize(
             mi.Vector3f((px - frame["cx"]) / frame["fx"], (py - frame["cy"]) / frame["fx"], 1.0)
         )
         d_body = frame["R_body_from_cam"] @ d_cam
-        # Start the ray just outside the target's bounding sphere with one rounding (FMA),
-        # so the start point and Embree's hit distances keep float32 precision.
-        origin = dr.fma(d_body, frame["t_start"], frame["camera_body"])
-        geo = self._intersect(origin, d_body, mi.Bool(True), opacity_sample, coherent=True)
+        if hits is None:
+            # Start the ray just outside the target's bounding sphere with one rounding
+            # (FMA), so the start point and Embree's hit distances keep float32 precision.
+            origin = dr.fma(d_body, frame["t_start"], frame["camera_body"])
+            geo = self._intersect(origin, d_body, mi.Bool(True), opacity_sample, coherent=True)
+            geo["t"] = geo["t"] + frame["t_start"]
+        else:
+            hit = mi.Bool(True)
+            geo = {"hit": hit, **self._surface_at(hits["face"], hits["u"], hits["v"], hit)}
         n = geo["n_geo"]
         geo["n"] = dr.select(dr.dot(n, d_body) > 0.0, -n, n)
-        geo["t"] = geo["t"] + frame["t_start"]
         geo["d_cam"] = d_cam
         geo["d_body"] = d_body
         return geo
@@ -359,8 +378,33 @@ class Renderer:
             total += frame["env"][k] * y
         return self._dr.maximum(total, 0.0)
 
-    def _diffuse_environment(self, frame: dict, n, wo_local, params, part, active):
-        """Diffuse radiance from the unshadowed environment: kd_eq / pi * sum_l k_l E_l(n)."""
+    def _diffuse_environment_table(self, frame: dict):
+        """Per face side, the unshadowed environment's diffuse radiance over kd_eq,
+        1 / pi * sum_l k_l E_l(n) (Color3f, W m^-2 sr^-1): entry ``face`` for the side of
+        the stored normal, ``face + faces`` for the other (see ``_face_side``).
+
+        Normals are flat per face, so this one small kernel per frame replaces the SH
+        evaluation at every shaded lane by a gather.
+        """
+        mi, dr = self._mi, self._dr
+        faces = dr.width(self._face_part)
+        side = dr.arange(mi.UInt32, 2 * faces)
+        face = side % faces
+        n = dr.gather(mi.Vector3f, self._face_n, face)
+        n = dr.select(side < faces, n, -n)
+        table = self._diffuse_environment(frame, n, dr.gather(mi.UInt32, self._face_part, face))
+        dr.eval(table)
+        return table
+
+    def _face_side(self, face, n_geo, towards):
+        """Index into the per-face-side tables: ``face`` where the stored normal n_geo
+        faces ``towards``, ``face + faces`` where the surface is seen from its back."""
+        faces = self._dr.width(self._face_part)
+        return self._dr.select(self._dr.dot(n_geo, towards) < 0.0, face + faces, face)
+
+    def _diffuse_environment(self, frame: dict, n, part):
+        """Diffuse radiance over kd_eq from the unshadowed environment at unit normal n:
+        1 / pi * sum_l k_l E_l(n), with the part's band factors k_l, clamped at 0."""
         mi, dr = self._mi, self._dr
         basis = sh.sh_eval_dr(n, self._l_max)
         total = mi.Color3f(0.0)
@@ -370,11 +414,10 @@ class Renderer:
             for m in range(-l, l + 1):
                 k = l * (l + 1) + m
                 band += frame["env"][k] * basis[k]
-            factor = dr.gather(mi.Float, self._band_factors, part * bands + l, active)
+            factor = dr.gather(mi.Float, self._band_factors, part * bands + l)
             total += factor * band
-        kd = self._surface.diffuse_coefficient(params, wo_local)
         # Clamped at 0 like the radiance: the truncated expansion can ring below zero.
-        return kd * (1.0 / math.pi) * dr.maximum(total, 0.0)
+        return (1.0 / math.pi) * dr.maximum(total, 0.0)
 
     def _labels(self, frame: dict, geo: dict):
         """Depth along +z (m), part id (index + 1, 0 background), camera-frame normals."""
@@ -389,31 +432,41 @@ class Renderer:
         mi = self._mi
         return mi.Float(pixel % width), mi.Float(pixel // width)
 
-    def _pass_primary(self, frame: dict, idx, pass_index):
-        """The primary ray of pixel ``idx`` in pass ``pass_index`` (UInt32) and the random
-        streams of that path: (geo, rng, ld) with ld(dim) the low-discrepancy sample."""
+    def _streams(self, frame: dict, idx, pass_index, segment: int):
+        """Random numbers of the paths of pixel ``idx`` in pass ``pass_index`` (UInt32):
+        (rng, ld) with rng a PCG32 for this path segment and ld(dim) the path's
+        low-discrepancy sample in dimension ``dim``.
+
+        The Kronecker sequence's per-pixel random shift is fixed over the frame's passes, so
+        the passes of one pixel are stratified; the generators are seeded through TEA
+        hashes of (pixel, frame key[, pass, segment]), which decorrelates neighbouring
+        pixels and passes. Both depend on the pixel and pass only, so a path continued in a
+        later kernel (``segment``) draws the same sequence whatever lane it is on.
+        """
         mi, dr = self._mi, self._dr
-        s = self.settings
-        px, py = self._pixel_xy(idx, frame["width"])
-        # Per-pixel random shift of the Kronecker sequence, fixed over the frame's passes.
-        # Generators are seeded through TEA hashes of (pixel, frame key[, pass]), so the
-        # streams of neighbouring pixels and passes are decorrelated.
         shift_rng = mi.PCG32(1, mi.sample_tea_64(idx, frame["key0"]), mi.UInt64(frame["key1"]))
+        shift = [shift_rng.next_float32() for _ in range(self._n_dims)]
         pass_f = mi.Float(pass_index)
         gens = self._generators
 
         def ld(dim: int):
-            x = dr.fma(pass_f, float(gens[dim]), shift_rng_values[dim])
+            x = dr.fma(pass_f, float(gens[dim]), shift[dim])
             # Fractional part, kept below 1 in float32.
             return dr.minimum(x - dr.floor(x), 0.99999994)
 
-        shift_rng_values = [shift_rng.next_float32() for _ in range(self._n_dims)]
-        rng = mi.PCG32(
-            1,
-            mi.sample_tea_64(idx, frame["key0"] ^ (pass_index * 0x9E3779B9 + 0x7F4A7C15)),
-            mi.UInt64(frame["key1"]) + 1,
-        )
+        salt = (0x7F4A7C15 + segment * 0x85EBCA6B) & 0xFFFFFFFF
+        key = frame["key0"] ^ (pass_index * 0x9E3779B9 + salt)
+        rng = mi.PCG32(1, mi.sample_tea_64(idx, key), mi.UInt64(frame["key1"]) + 1)
+        return rng, ld
 
+    def _pass_primary(self, frame: dict, idx, pass_index, hits: dict | None = None) -> dict:
+        """The primary ray of pixel ``idx`` in pass ``pass_index`` (UInt32) and the surface
+        it stops at (see ``_primary``, also for ``hits``), with the path's pixel, pass and
+        random streams: ``rng`` for the shading of the first vertex, ``ld``."""
+        mi = self._mi
+        s = self.settings
+        px, py = self._pixel_xy(idx, frame["width"])
+        rng, ld = self._streams(frame, idx, pass_index, 0)
         ss = float(s.supersampling)
         if s.samples_per_pixel == 1:
             jx, jy = mi.Float(0.5), mi.Float(0.5)
@@ -422,73 +475,119 @@ class Renderer:
         stratum = pass_index // s.samples_per_pixel
         ox = (mi.Float(stratum % s.supersampling) + jx) / ss - 0.5
         oy = (mi.Float(stratum // s.supersampling) + jy) / ss - 0.5
-        geo = self._primary(frame, px + ox, py + oy, lambda layer: rng.next_float32())
-        return geo, rng, ld
+        geo = self._primary(frame, px + ox, py + oy, lambda layer: rng.next_float32(), hits)
+        # A stream of its own for the first vertex, whether or not the ray was traced here.
+        rng, _ = self._streams(frame, idx, pass_index, 1)
+        geo.update(pixel=idx, pass_index=pass_index, rng=rng, ld=ld)
+        return geo
 
-    def _path(self, frame: dict, idx, pass_index):
-        """One light path per lane for pixel ``idx`` and pass ``pass_index`` (UInt32):
-        its radiance estimate, Color3f (W m^-2 sr^-1)."""
+    def _trace(self, frame: dict, geo: dict, lane_sum) -> None:
+        """Follow the light paths that start at the primary hits ``geo`` (from
+        ``_pass_primary``, with ``lane``: each path's own entry of ``lane_sum``) and add
+        their radiance to ``lane_sum`` (Color3f).
+
+        One kernel per path vertex (a wavefront): after each bounce ray the paths that met
+        the target again are evaluated, listed (dr.compress) and continued in the next
+        kernel on those lanes alone, so a vertex's shading costs only the paths that reach
+        it. The last kernel is left unevaluated for the caller to launch.
+        """
+        mi, dr = self._mi, self._dr
+        pixel, pass_index, rng, ld = geo["pixel"], geo["pass_index"], geo["rng"], geo["ld"]
+        lane = geo["lane"]
+        vertex = {
+            "p": geo["p"],
+            "n": geo["n"],
+            "part": geo["part"],
+            "wo": -geo["d_body"],
+            "side": self._face_side(geo["face"], geo["n_geo"], -geo["d_body"]),
+            "throughput": mi.Color3f(1.0),
+        }
+        active = geo["hit"]
+        for depth in range(self.settings.bounces + 1):
+            value, nxt = self._shade_vertex(frame, vertex, active, depth, rng, ld)
+            dr.scatter_add(lane_sum, value, lane, active, mode=dr.ReduceMode.NoConflicts)
+            if nxt is None:
+                return
+            hit = nxt.pop("hit")
+            dr.eval(lane_sum, hit, *nxt.values())
+            selected = dr.compress(hit)
+            if dr.width(selected) == 0:
+                return
+            same = lane is pixel
+            pixel = dr.gather(mi.UInt32, pixel, selected)
+            lane = pixel if same else dr.gather(mi.UInt32, lane, selected)
+            if dr.width(pass_index) > 1:
+                pass_index = dr.gather(mi.UInt32, pass_index, selected)
+            vertex = {k: dr.gather(type(v), v, selected) for k, v in nxt.items()}
+            active = mi.Bool(True)
+            rng, ld = self._streams(frame, pixel, pass_index, depth + 2)
+
+    def _shade_vertex(self, frame: dict, vertex: dict, active, depth: int, rng, ld):
+        """Radiance a path picks up at one surface vertex, and where it goes next.
+
+        vertex: p, n (unit normal on the side of wo), part, wo (towards the previous
+        vertex), side (see ``_face_side``), throughput (path weight so far). Returns
+        (radiance Color3f, next) with next None at the path's last vertex, else the next
+        vertex's values and ``hit``.
+        """
         mi, dr = self._mi, self._dr
         s = self.settings
-        geo, rng, ld = self._pass_primary(frame, idx, pass_index)
-        self._last_primary = geo  # the label rays when the frame has one centred pass
-        surface = self._surface
-        radiance = mi.Color3f(0.0)
-        throughput = mi.Color3f(1.0)
-        active = geo["hit"]
-        p, n, part, wo = geo["p"], geo["n"], geo["part"], -geo["d_body"]
-        eps = frame["eps"]
         env_on = s.environment != "off" or s.sun == "sh"
-        need_ray = env_on or s.bounces > 0
-        for depth in range(s.bounces + 1):
-            shading = mi.Frame3f(n)
-            wo_local = shading.to_local(wo)
-            origin = p + n * eps
-            if depth == 1:
-                surface = self._surface_indirect
-            params = surface.at(part, active)  # gathered once per surface hit
-            if s.sun == "delta":
-                wi = frame["sun_dir"]
-                wi_local = shading.to_local(wi)
-                lit = active & (wi_local.z > 0.0) & (frame["sun_e"] > 0.0)
-                lit &= self._visible(origin, wi, lit, rng)
-                f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
-                irradiance = frame["sun_e"] * wi_local.z
-                radiance += dr.select(lit, throughput * (f_diffuse + f_specular) * irradiance, 0.0)
-            if s.environment == "unshadowed":
-                diffuse_env = self._diffuse_environment(frame, n, wo_local, params, part, active)
-                radiance += dr.select(active, throughput * diffuse_env, 0.0)
-            if not need_ray or (depth == s.bounces and not env_on):
-                break
-            base = 2 + 3 * depth
-            u2 = mi.Point2f(ld(base + 1), ld(base + 2))
-            wi_local, pdf = surface.sample(params, wo_local, ld(base), u2)
-            valid = active & (pdf > 0.0) & (wi_local.z > 0.0)
+        surface = self._surface if depth == 0 else self._surface_indirect
+        p, n, part, wo = vertex["p"], vertex["n"], vertex["part"], vertex["wo"]
+        throughput = vertex["throughput"]
+        shading = mi.Frame3f(n)
+        wo_local = shading.to_local(wo)
+        origin = p + n * frame["eps"]
+        params = surface.at(part, active)  # gathered once per surface hit
+        radiance = mi.Color3f(0.0)
+        if s.sun == "delta":
+            wi = frame["sun_dir"]
+            wi_local = shading.to_local(wi)
+            lit = active & (wi_local.z > 0.0) & (frame["sun_e"] > 0.0)
+            lit &= self._visible(origin, wi, lit, rng)
             f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
-            cos_over_pdf = wi_local.z / dr.maximum(pdf, 1e-30)
-            weight = dr.select(valid, (f_diffuse + f_specular) * cos_over_pdf, 0.0)
-            wi = shading.to_world(wi_local)
-            if depth == s.bounces:
-                # The path ends here: the ray only has to know whether it leaves the target.
-                escaped = valid & self._visible(origin, wi, valid, rng)
-            else:
-                nxt = self._intersect(origin, wi, valid, lambda layer: rng.next_float32())
-                escaped = valid & ~nxt["hit"]
-            if env_on:
-                env_weight = weight
-                if s.environment == "unshadowed":
-                    # The diffuse part came from the SH convolution above: only the
-                    # specular part is taken from the sampled ray.
-                    env_weight = f_specular * cos_over_pdf
-                radiance += dr.select(
-                    escaped, throughput * env_weight * self._environment_radiance(frame, wi), 0.0
-                )
-            if depth == s.bounces:
-                break
-            throughput = throughput * weight
-            active = valid & nxt["hit"]
-            wo = -wi
-            ng = nxt["n_geo"]
-            n = dr.select(dr.dot(ng, wo) < 0.0, -ng, ng)
-            p, part = nxt["p"], nxt["part"]
-        return radiance
+            irradiance = frame["sun_e"] * wi_local.z
+            radiance += dr.select(lit, (f_diffuse + f_specular) * irradiance, 0.0)
+        if s.environment == "unshadowed":
+            table = frame["diffuse_env"]
+            diffuse_env = dr.gather(type(table), table, vertex["side"], active)
+            kd = surface.diffuse_coefficient(params, wo_local)
+            radiance += dr.select(active, kd * diffuse_env, 0.0)
+        last = depth == s.bounces
+        if last and not env_on:
+            return throughput * radiance, None
+        base = 2 + 3 * depth
+        u2 = mi.Point2f(ld(base + 1), ld(base + 2))
+        wi_local, pdf = surface.sample(params, wo_local, ld(base), u2)
+        valid = active & (pdf > 0.0) & (wi_local.z > 0.0)
+        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+        cos_over_pdf = wi_local.z / dr.maximum(pdf, 1e-30)
+        weight = dr.select(valid, (f_diffuse + f_specular) * cos_over_pdf, 0.0)
+        wi = shading.to_world(wi_local)
+        if last:
+            # The path ends here: the ray only has to know whether it leaves the target.
+            escaped = valid & self._visible(origin, wi, valid, rng)
+        else:
+            nxt = self._intersect(origin, wi, valid, lambda layer: rng.next_float32())
+            escaped = valid & ~nxt["hit"]
+        if env_on:
+            env_weight = weight
+            if s.environment == "unshadowed":
+                # The diffuse part came from the SH convolution above: only the specular
+                # part is taken from the sampled ray.
+                env_weight = f_specular * cos_over_pdf
+            radiance += dr.select(escaped, env_weight * self._environment_radiance(frame, wi), 0.0)
+        radiance = throughput * radiance
+        if last:
+            return radiance, None
+        ng = nxt["n_geo"]
+        return radiance, {
+            "hit": valid & nxt["hit"],
+            "p": nxt["p"],
+            "n": dr.select(dr.dot(ng, wi) > 0.0, -ng, ng),  # the side facing wo = -wi
+            "part": nxt["part"],
+            "wo": -wi,
+            "side": self._face_side(nxt["face"], ng, -wi),
+            "throughput": throughput * weight,
+        }
