@@ -17,9 +17,12 @@ from scipy.spatial.transform import Rotation
 from builders import MICRO_PX, ONE_MM
 from satsight.camera.pinhole import PinholeCamera
 from satsight.dataset.labels import frame_labels
+from satsight.lighting.light_field import LightField
 from satsight.poses.views import View
 from satsight.render.buffers import SunLight
 from satsight.render.direct import DirectRenderer
+from satsight.render.renderer import Renderer
+from satsight.render.settings import RenderSettings
 from satsight.scene.procedural import generate_satellite
 
 AGREEMENT_FRACTION = 0.999
@@ -105,6 +108,36 @@ def test_depth_and_masks_match_embree_oracle(
     tolerance = ONE_MM * distance_m / 1000.0
     assert np.mean(depth_error <= tolerance) >= AGREEMENT_FRACTION
     assert np.all(image.depth_m[~image.object_mask] == 0.0)
+
+
+@pytest.mark.parametrize("radiative", [False, True])
+def test_part_ids_at_an_odd_image_size_match_embree_oracle(satellite, llvm_variant, radiative):
+    """Odd width and height (part ids are handed over two per 32-bit word), through both
+    label paths: the direct-sun renderer's single kernel and the radiative renderer's
+    first (hit-finding) kernel."""
+    settings = RenderSettings(environment="unshadowed", bounces=1)
+    renderer = Renderer(satellite, settings, llvm_variant) if radiative else None
+    renderer = renderer or DirectRenderer(satellite, llvm_variant)
+    pitch = 15e-6
+    camera = PinholeCamera(
+        0.8 * 97 * pitch * 1000.0 / (2.0 * satellite.bounding_radius_m), pitch, 121, 97
+    )
+    cam_from_body = View(1000.0, math.radians(40.0), math.radians(15.0), 0.2).cam_from_body(
+        satellite.center_m
+    )
+    if radiative:
+        light = LightField.sun_only(SUN.direction_body, SUN.irradiance_w_m2)
+        image = renderer.render(camera, cam_from_body, light)
+    else:
+        image = renderer.render(camera, cam_from_body, SUN)
+    tri, _ = _oracle(satellite, camera, cam_from_body)
+    part_ref = np.where(tri >= 0, satellite.part_ids[np.maximum(tri, 0)], 0)
+    assert image.part_id.dtype == np.uint16
+    assert image.part_id.shape == (97, 121)
+    assert (part_ref > 0).sum() > 600
+    assert np.mean(image.part_id == part_ref) >= AGREEMENT_FRACTION
+    # The last pixel (the unpaired half of the last word) is background in both.
+    assert image.part_id[-1, -1] == part_ref[-1, -1]
 
 
 def test_depth_valid_at_200_km(satellite, renderer):

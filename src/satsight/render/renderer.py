@@ -32,6 +32,7 @@ ray start are as in ``satsight.render.direct`` (see docs/design.md).
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 
@@ -203,7 +204,9 @@ class Renderer:
         # target: a first kernel finds the hits, dr.compress lists them, the shading kernel
         # runs on those lanes alone (a target covering 5 % of the frame costs 5 %).
         compact = s.environment != "off" or s.sun == "sh" or s.bounces > 0
-        radiance = dr.zeros(mi.Color3f, n_pix)
+        # Radiance and normals are flat (H, W, 3) arrays that the kernels write in place
+        # (packet scatters of the three channels): no reordering pass after them.
+        radiance = dr.zeros(mi.Float, 3 * n_pix)
         labels: tuple = ()
         first = 0
         while first < s.passes:
@@ -224,7 +227,7 @@ class Renderer:
             geo = self._pass_primary(frame, pixel, pass_index)
             geo["lane"] = pixel if count == 1 else lanes
             if centre_labels:
-                labels = self._labels(frame, geo)
+                labels = self._labels(frame, geo, idx)
             if compact:
                 hits = {k: geo[k] for k in ("face", "u", "v")}
                 dr.eval(geo["hit"], *hits.values(), *labels)
@@ -242,26 +245,38 @@ class Renderer:
             else:
                 self._trace(frame, geo, lane_sum)
             if count > 1:
-                radiance += dr.block_sum(lane_sum, count)
+                dr.scatter_add(radiance, dr.block_sum(lane_sum, count), idx)
             dr.eval(radiance, *labels)
             first += count
         if not centre_labels:
             # Labels: the ray through each pixel centre; transparent parts count as solid
             # above the label opacity threshold.
             geo = self._primary(frame, px, py, lambda layer: mi.Float(LABEL_OPACITY_THRESHOLD))
-            labels = self._labels(frame, geo)
+            labels = self._labels(frame, geo, idx)
         depth, part_id, normals = labels
         if s.passes > 1:
-            radiance = radiance / float(s.passes)
-        flat_rad = dr.ravel(radiance)
-        flat_n = dr.ravel(normals)
-        dr.eval(flat_rad, flat_n)
+            radiance = radiance * (1.0 / s.passes)
+        part_pairs = self._pack_uint16_pairs(part_id)
+        dr.eval(radiance, depth, part_pairs, normals)
+
         return RadianceImage(
-            radiance_w_m2_sr=flat_rad.numpy().reshape(height, width, 3),
+            radiance_w_m2_sr=radiance.numpy().reshape(height, width, 3),
             depth_m=depth.numpy().reshape(height, width),
-            part_id=part_id.numpy().astype(np.uint16).reshape(height, width),
-            normals_cam=flat_n.numpy().reshape(height, width, 3),
+            part_id=part_pairs.numpy().view(np.uint16)[:n_pix].reshape(height, width),
+            normals_cam=normals.numpy().reshape(height, width, 3),
         )
+
+    def _pack_uint16_pairs(self, values):
+        """UInt32 values < 2^16, two per UInt32 in memory order, so that numpy reads the
+        result as uint16 without a conversion pass."""
+        mi, dr = self._mi, self._dr
+        n = dr.width(values)
+        pair = dr.arange(mi.UInt32, (n + 1) // 2)
+        first = dr.gather(mi.UInt32, values, 2 * pair)
+        second = dr.gather(mi.UInt32, values, 2 * pair + 1, 2 * pair + 1 < n)
+        if sys.byteorder == "big":
+            first, second = second, first
+        return first | (second << 16)
 
     # ------------------------------------------------------------------------------------
     def _environment_coefficients(self, light: LightField) -> np.ndarray:
@@ -419,13 +434,16 @@ class Renderer:
         # Clamped at 0 like the radiance: the truncated expansion can ring below zero.
         return (1.0 / math.pi) * dr.maximum(total, 0.0)
 
-    def _labels(self, frame: dict, geo: dict):
-        """Depth along +z (m), part id (index + 1, 0 background), camera-frame normals."""
-        dr = self._dr
+    def _labels(self, frame: dict, geo: dict, pixel):
+        """Depth along +z (m), part id (index + 1, 0 background) and camera-frame normals
+        (flat Float, three per pixel) of the rays ``geo`` of pixels ``pixel``."""
+        mi, dr = self._mi, self._dr
         hit = geo["hit"]
         depth = dr.select(hit, geo["t"] * geo["d_cam"].z, 0.0)
         part_id = dr.select(hit, geo["part"] + 1, 0)
-        normals = dr.select(hit, frame["R_cam_from_body"] @ geo["n"], 0.0)
+        n_cam = dr.select(hit, frame["R_cam_from_body"] @ geo["n"], 0.0)
+        normals = dr.empty(mi.Float, 3 * dr.width(pixel))
+        dr.scatter(normals, n_cam, pixel)  # one packet write of the three components
         return depth, part_id, normals
 
     def _pixel_xy(self, pixel, width: int):
@@ -462,7 +480,7 @@ class Renderer:
     def _pass_primary(self, frame: dict, idx, pass_index, hits: dict | None = None) -> dict:
         """The primary ray of pixel ``idx`` in pass ``pass_index`` (UInt32) and the surface
         it stops at (see ``_primary``, also for ``hits``), with the path's pixel, pass and
-        random streams: ``rng`` for the shading of the first vertex, ``ld``."""
+        low-discrepancy sample ``ld``."""
         mi = self._mi
         s = self.settings
         px, py = self._pixel_xy(idx, frame["width"])
@@ -476,23 +494,23 @@ class Renderer:
         ox = (mi.Float(stratum % s.supersampling) + jx) / ss - 0.5
         oy = (mi.Float(stratum // s.supersampling) + jy) / ss - 0.5
         geo = self._primary(frame, px + ox, py + oy, lambda layer: rng.next_float32(), hits)
-        # A stream of its own for the first vertex, whether or not the ray was traced here.
-        rng, _ = self._streams(frame, idx, pass_index, 1)
-        geo.update(pixel=idx, pass_index=pass_index, rng=rng, ld=ld)
+        geo.update(pixel=idx, pass_index=pass_index, ld=ld)
         return geo
 
     def _trace(self, frame: dict, geo: dict, lane_sum) -> None:
         """Follow the light paths that start at the primary hits ``geo`` (from
         ``_pass_primary``, with ``lane``: each path's own entry of ``lane_sum``) and add
-        their radiance to ``lane_sum`` (Color3f).
+        their radiance to ``lane_sum`` (Color3f per lane, or a flat Float of three values per
+        lane).
 
-        One kernel per path vertex (a wavefront): after each bounce ray the paths that met
-        the target again are evaluated, listed (dr.compress) and continued in the next
-        kernel on those lanes alone, so a vertex's shading costs only the paths that reach
-        it. The last kernel is left unevaluated for the caller to launch.
+        One kernel per path vertex (a wavefront). A vertex's bounce ray is first only
+        tested for occlusion (cheaper than finding the hit); the paths whose ray meets the
+        target again are listed (dr.compress) and the next kernel, on those lanes alone,
+        traces the ray to its hit and shades it. So a vertex costs only the paths that
+        reach it. The last kernel is left unevaluated for the caller to launch.
         """
         mi, dr = self._mi, self._dr
-        pixel, pass_index, rng, ld = geo["pixel"], geo["pass_index"], geo["rng"], geo["ld"]
+        pixel, pass_index, ld = geo["pixel"], geo["pass_index"], geo["ld"]
         lane = geo["lane"]
         vertex = {
             "p": geo["p"],
@@ -504,12 +522,16 @@ class Renderer:
         }
         active = geo["hit"]
         for depth in range(self.settings.bounces + 1):
-            value, nxt = self._shade_vertex(frame, vertex, active, depth, rng, ld)
+
+            def rng(segment: int, pixel=pixel, pass_index=pass_index):
+                return self._streams(frame, pixel, pass_index, segment)[0]
+
+            value, ray = self._shade_vertex(frame, vertex, active, depth, rng, ld)
             dr.scatter_add(lane_sum, value, lane, active, mode=dr.ReduceMode.NoConflicts)
-            if nxt is None:
+            if ray is None:
                 return
-            hit = nxt.pop("hit")
-            dr.eval(lane_sum, hit, *nxt.values())
+            hit = ray.pop("hit")
+            dr.eval(lane_sum, hit, *ray.values())
             selected = dr.compress(hit)
             if dr.width(selected) == 0:
                 return
@@ -518,17 +540,48 @@ class Renderer:
             lane = pixel if same else dr.gather(mi.UInt32, lane, selected)
             if dr.width(pass_index) > 1:
                 pass_index = dr.gather(mi.UInt32, pass_index, selected)
-            vertex = {k: dr.gather(type(v), v, selected) for k, v in nxt.items()}
-            active = mi.Bool(True)
-            rng, ld = self._streams(frame, pixel, pass_index, depth + 2)
+            ray = {k: dr.gather(type(v), v, selected) for k, v in ray.items()}
+            # The same stream as the occlusion test, so a partly transparent surface lets
+            # the ray through (or not) exactly as it did there.
+            opacity, ld = self._streams(frame, pixel, pass_index, self._bounce_segment(depth))
+            found = self._intersect(
+                ray["origin"],
+                ray["direction"],
+                mi.Bool(True),
+                lambda layer, opacity=opacity: opacity.next_float32(),
+            )
+            wo = -ray["direction"]
+            ng = found["n_geo"]
+            vertex = {
+                "p": found["p"],
+                "n": dr.select(dr.dot(ng, wo) < 0.0, -ng, ng),
+                "part": found["part"],
+                "wo": wo,
+                "side": self._face_side(found["face"], ng, wo),
+                "throughput": ray["throughput"],
+            }
+            # Occlusion test and hit search agree but for rounding at edges; a path whose
+            # ray finds no surface after all ends there.
+            active = found["hit"]
+
+    @staticmethod
+    def _shading_segment(depth: int) -> int:
+        """Random-stream segment of the shadow rays at path vertex ``depth``."""
+        return 1 + 2 * depth
+
+    @staticmethod
+    def _bounce_segment(depth: int) -> int:
+        """Random-stream segment of the bounce ray that leaves path vertex ``depth``."""
+        return 2 + 2 * depth
 
     def _shade_vertex(self, frame: dict, vertex: dict, active, depth: int, rng, ld):
-        """Radiance a path picks up at one surface vertex, and where it goes next.
+        """Radiance a path picks up at one surface vertex, and the ray it continues on.
 
         vertex: p, n (unit normal on the side of wo), part, wo (towards the previous
-        vertex), side (see ``_face_side``), throughput (path weight so far). Returns
-        (radiance Color3f, next) with next None at the path's last vertex, else the next
-        vertex's values and ``hit``.
+        vertex), side (see ``_face_side``), throughput (path weight so far). rng(segment):
+        the path's PCG32 of a stream segment. Returns (radiance Color3f, ray) with ray None
+        at the path's last vertex, else ``hit`` (the ray meets the target), origin,
+        direction and the path's throughput after this vertex.
         """
         mi, dr = self._mi, self._dr
         s = self.settings
@@ -545,7 +598,7 @@ class Renderer:
             wi = frame["sun_dir"]
             wi_local = shading.to_local(wi)
             lit = active & (wi_local.z > 0.0) & (frame["sun_e"] > 0.0)
-            lit &= self._visible(origin, wi, lit, rng)
+            lit &= self._visible(origin, wi, lit, rng(self._shading_segment(depth)))
             f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
             irradiance = frame["sun_e"] * wi_local.z
             radiance += dr.select(lit, (f_diffuse + f_specular) * irradiance, 0.0)
@@ -565,12 +618,13 @@ class Renderer:
         cos_over_pdf = wi_local.z / dr.maximum(pdf, 1e-30)
         weight = dr.select(valid, (f_diffuse + f_specular) * cos_over_pdf, 0.0)
         wi = shading.to_world(wi_local)
-        if last:
-            # The path ends here: the ray only has to know whether it leaves the target.
-            escaped = valid & self._visible(origin, wi, valid, rng)
+        if last and s.environment == "unshadowed":
+            # No visibility ray for the environment: the path's last vertex sees it
+            # unshadowed, as the diffuse part does.
+            escaped = valid
         else:
-            nxt = self._intersect(origin, wi, valid, lambda layer: rng.next_float32())
-            escaped = valid & ~nxt["hit"]
+            bounce_rng = rng(self._bounce_segment(depth))
+            escaped = valid & self._visible(origin, wi, valid, bounce_rng)
         if env_on:
             env_weight = weight
             if s.environment == "unshadowed":
@@ -581,13 +635,9 @@ class Renderer:
         radiance = throughput * radiance
         if last:
             return radiance, None
-        ng = nxt["n_geo"]
         return radiance, {
-            "hit": valid & nxt["hit"],
-            "p": nxt["p"],
-            "n": dr.select(dr.dot(ng, wi) > 0.0, -ng, ng),  # the side facing wo = -wi
-            "part": nxt["part"],
-            "wo": -wi,
-            "side": self._face_side(nxt["face"], ng, -wi),
+            "hit": valid & ~escaped,
+            "origin": origin,
+            "direction": wi,
             "throughput": throughput * weight,
         }
