@@ -2,13 +2,17 @@
 
 The frames of a scenario are rendered once as a **reference** (the GGX
 metallic/roughness/IOR model of Eq. 18-20 that defines the materials, the exact collimated
-Sun, the sampled environment expanded to SH order 8, the scenario's bounces, many samples
-per pixel) and then with each **variant**, which changes one thing:
+Sun, the sampled environment expanded to SH order 8, no inter-reflection unless asked for,
+many samples per pixel) and then with each **variant**, which changes one thing:
 
 * ``improved_phong`` / ``phong``: the reflection model (Eq. 17 / Eq. 16), exact Sun;
 * ``sh3_sun`` / ``sh4_sun``: the Sun replaced by its SH expansion of order 3 / 4 (Eq. 10),
   the environment truncated to the same order;
 * ``exact``: the reference model itself at the variants' sample count (the noise floor).
+
+Every run of a frame uses the frame's seed (common random numbers): a variant's passes see
+the same samples as the reference's first passes, so the noise that separates them is
+small and the differences measure the model change.
 
 Metrics per variant, averaged over frames, on the pixels where either image sees the target:
 
@@ -105,8 +109,15 @@ def run_ablation(
     width_px: int | None = 384,
     max_frames: int | None = None,
     on_render: Callable[[str, int], None] | None = None,
+    bounces: int = 0,
 ) -> AblationResult:
-    """Render the reference and every variant for the scenario's frames; see module doc."""
+    """Render the reference and every variant for the scenario's frames; see module doc.
+
+    bounces: inter-reflections in every run. The default 0 compares the models where they
+    act first, at the visible surface; with bounces the rare bright inter-reflection paths
+    (Sun light reflected by a glossy part into another) add Monte Carlo noise that grows
+    the noise floor far above the model differences at affordable sample counts.
+    """
     from satsight.pipeline import build_light_field, build_target, frame_seed
 
     if samples_per_pixel < 1 or reference_samples_per_pixel < samples_per_pixel:
@@ -118,7 +129,12 @@ def run_ablation(
     camera = ablation_camera(scenario.camera.build(), width_px)
     frames = scenario.frames if max_frames is None else scenario.frames[:max_frames]
     base = scenario.render.settings().with_(
-        brdf="ggx", sun="delta", environment="sampled", supersampling=1, sh_order=REFERENCE_SH_ORDER
+        brdf="ggx",
+        sun="delta",
+        environment="sampled",
+        supersampling=1,
+        sh_order=REFERENCE_SH_ORDER,
+        bounces=bounces,
     )
     light = build_light_field(
         scenario.model_copy(
@@ -136,8 +152,10 @@ def run_ablation(
         images[name] = []
         for index, frame in enumerate(frames):
             pose = frame.build().cam_from_body(mesh.center_m)
-            seed = frame_seed(scenario.seed, index) ^ (0 if name == "reference" else 1)
-            image = renderer.render(camera, pose, light, seed=seed)
+            # Common random numbers: every run of a frame uses the same seed, so a variant's
+            # passes use the same samples as the reference's first passes and their
+            # difference shows the model change, not independent Monte Carlo noise.
+            image = renderer.render(camera, pose, light, seed=frame_seed(scenario.seed, index))
             images[name].append(image.radiance_w_m2_sr)
             if on_render is not None:
                 on_render(name, index)

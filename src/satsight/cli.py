@@ -131,6 +131,13 @@ def generate(config: Path, out_dir: Path, overwrite: bool) -> None:
     help="image width in pixels (same field of view as the scenario's camera)",
 )
 @click.option(
+    "--bounces",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0, max=16),
+    help="inter-reflections in every run (they add noise common to all variants)",
+)
+@click.option(
     "--max-frames", default=None, type=click.IntRange(min=1), help="use the first N frames only"
 )
 def ablate(
@@ -140,6 +147,7 @@ def ablate(
     spp: int,
     reference_spp: int,
     width_px: int,
+    bounces: int,
     max_frames: int | None,
 ) -> None:
     """Ablate the radiative model on CONFIG's frames (paper Table 4): MSE, PSNR, angle."""
@@ -168,6 +176,7 @@ def ablate(
             reference_samples_per_pixel=reference_spp,
             width_px=width_px,
             max_frames=max_frames,
+            bounces=bounces,
             on_render=lambda name, index: progress.update(
                 task, advance=1, description=f"ablation: {name}"
             ),
@@ -178,7 +187,7 @@ def ablate(
             root / "ablation.png",
             result,
             f"{scenario.name}: ablation against the reference ({reference_spp} spp), "
-            f"variants at {spp} spp, {frames} frame(s)",
+            f"variants at {spp} spp, {bounces} bounce(s), {frames} frame(s)",
         )
     table = Table(title=f"ablation of '{scenario.name}' ({frames} frames, {width_px} px wide)")
     for column in ("variant", "MSE (W m^-2 sr^-1)^2", "PSNR (dB)", "mean angle (deg)"):
