@@ -1,0 +1,1 @@
+"""Time, Sun and Moon, orbits and visibility: where everything is at each frame."""
