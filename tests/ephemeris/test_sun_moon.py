@@ -200,24 +200,23 @@ def test_shapes_units_and_dtype():
     assert np.all(np.abs(np.linalg.norm(moon, axis=1) - 3.85e8) < 0.25e8)
 
 
-def test_sun_agrees_with_astropy_builtin(astropy_offline):
+@pytest.mark.parametrize(
+    ("body", "position", "direction_tol_arcsec", "distance_rel_tol"),
+    [
+        ("sun", sun_moon.sun_position_gcrs_m, SUN_DIRECTION_TOL_ARCSEC, SUN_DISTANCE_REL_TOL),
+        ("moon", sun_moon.moon_position_gcrs_m, MOON_DIRECTION_TOL_ARCSEC, MOON_DISTANCE_REL_TOL),
+    ],
+)
+def test_body_agrees_with_astropy_builtin(
+    astropy_offline, body, position, direction_tol_arcsec, distance_rel_tol
+):
     ts = _times(EPOCHS)
-    ours = _stack(sun_moon.sun_position_gcrs_m, ts)
-    oracle = _oracle_geometric_m(astropy_offline, "sun", ts)
+    ours = _stack(position, ts)
+    oracle = _oracle_geometric_m(astropy_offline, body, ts)
     angle = _angle_arcsec(ours, oracle)
     rel = np.linalg.norm(ours, axis=1) / np.linalg.norm(oracle, axis=1) - 1.0
-    assert np.all(angle < SUN_DIRECTION_TOL_ARCSEC), angle
-    assert np.all(np.abs(rel) < SUN_DISTANCE_REL_TOL), rel
-
-
-def test_moon_agrees_with_astropy_builtin(astropy_offline):
-    ts = _times(EPOCHS)
-    ours = _stack(sun_moon.moon_position_gcrs_m, ts)
-    oracle = _oracle_geometric_m(astropy_offline, "moon", ts)
-    angle = _angle_arcsec(ours, oracle)
-    rel = np.linalg.norm(ours, axis=1) / np.linalg.norm(oracle, axis=1) - 1.0
-    assert np.all(angle < MOON_DIRECTION_TOL_ARCSEC), angle
-    assert np.all(np.abs(rel) < MOON_DISTANCE_REL_TOL), rel
+    assert np.all(angle < direction_tol_arcsec), angle
+    assert np.all(np.abs(rel) < distance_rel_tol), rel
 
 
 def test_geometric_not_apparent_differs_by_annual_aberration(astropy_offline):
