@@ -110,6 +110,7 @@ def run_ablation(
     max_frames: int | None = None,
     on_render: Callable[[str, int], None] | None = None,
     bounces: int = 0,
+    on_plan: Callable[[int], None] | None = None,
 ) -> AblationResult:
     """Render the reference and every variant for the scenario's frames; see module doc.
 
@@ -118,7 +119,7 @@ def run_ablation(
     (Sun light reflected by a glossy part into another) add Monte Carlo noise that grows
     the noise floor far above the model differences at affordable sample counts.
     """
-    from satsight.pipeline import build_light_field, build_target, frame_seed
+    from satsight.pipeline import build_target, frame_light, frame_seed, planned_frames
 
     if samples_per_pixel < 1 or reference_samples_per_pixel < samples_per_pixel:
         raise SatsightError(
@@ -127,7 +128,15 @@ def run_ablation(
         )
     mesh = build_target(scenario.target)
     camera = ablation_camera(scenario.camera.build(), width_px)
-    frames = scenario.frames if max_frames is None else scenario.frames[:max_frames]
+    reference_scenario = scenario.model_copy(
+        update={"render": scenario.render.model_copy(update={"sh_order": REFERENCE_SH_ORDER})}
+    )
+    track, indices = planned_frames(reference_scenario, mesh)
+    if max_frames is not None:
+        indices = indices[:max_frames]
+    lights = [frame_light(reference_scenario, track, i)[0] for i in indices]
+    if on_plan is not None:
+        on_plan(len(indices))
     base = scenario.render.settings().with_(
         brdf="ggx",
         sun="delta",
@@ -135,11 +144,6 @@ def run_ablation(
         supersampling=1,
         sh_order=REFERENCE_SH_ORDER,
         bounces=bounces,
-    )
-    light = build_light_field(
-        scenario.model_copy(
-            update={"render": scenario.render.model_copy(update={"sh_order": REFERENCE_SH_ORDER})}
-        )
     )
     runs: dict[str, RenderSettings] = {
         "reference": base.with_(samples_per_pixel=reference_samples_per_pixel)
@@ -150,12 +154,14 @@ def run_ablation(
     for name, settings in runs.items():
         renderer = Renderer(mesh, settings, scenario.render.variant)
         images[name] = []
-        for index, frame in enumerate(frames):
-            pose = frame.build().cam_from_body(mesh.center_m)
+        for index, (plan_index, light) in enumerate(zip(indices, lights, strict=True)):
+            pose = track.cam_from_body(plan_index)
             # Common random numbers: every run of a frame uses the same seed, so a variant's
             # passes use the same samples as the reference's first passes and their
             # difference shows the model change, not independent Monte Carlo noise.
-            image = renderer.render(camera, pose, light, seed=frame_seed(scenario.seed, index))
+            image = renderer.render(
+                camera, pose, light, seed=frame_seed(scenario.seed, int(plan_index))
+            )
             images[name].append(image.radiance_w_m2_sr)
             if on_render is not None:
                 on_render(name, index)

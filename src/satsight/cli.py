@@ -41,16 +41,14 @@ def _generate(config_path: Path, out_dir: Path, overwrite: bool) -> None:
     from satsight.pipeline import run_scenario
 
     scenario = load_scenario(config_path)
-    console.print(
-        f"[bold]satsight[/bold]: scenario '{scenario.name}', {len(scenario.frames)} frames"
-    )
+    console.print(f"[bold]satsight[/bold]: scenario '{scenario.name}'")
     with _progress() as progress:
-        task = progress.add_task("rendering", total=len(scenario.frames))
+        task = progress.add_task("rendering", total=None)
         summary = run_scenario(
             scenario,
             out_dir,
             overwrite=overwrite,
-            on_frame_done=lambda done, total: progress.update(task, completed=done),
+            on_frame_done=lambda done, total: progress.update(task, completed=done, total=total),
         )
     times = sorted(summary.render_seconds)
     median = times[len(times) // 2]
@@ -96,6 +94,63 @@ def demo(out_dir: Path, overwrite: bool) -> None:
 def generate(config: Path, out_dir: Path, overwrite: bool) -> None:
     """Render the scenario in CONFIG (YAML) into a dataset folder."""
     _generate(config, out_dir, overwrite)
+
+
+# Rows of the printed plan shown in full; longer plans show their head and tail.
+_PLAN_ROWS_SHOWN = 40
+
+
+@cli.command()
+@click.argument("config", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    default=Path("out/plan"),
+    show_default=True,
+    help="folder for plan.csv and the plots (created; files of the same name are replaced)",
+)
+@click.option("--no-plots", is_flag=True, help="write plan.csv only")
+def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
+    """Print the frame plan of CONFIG without rendering, and plot it."""
+    from rich.table import Table
+
+    from satsight.config.scenario import load_scenario
+    from satsight.pipeline import build_target
+    from satsight.poses.plan import frames_to_render, plan_track
+    from satsight.poses.plan_plots import plan_table_rows, write_plan_csv, write_plan_plots
+
+    scenario = load_scenario(config)
+    track = plan_track(scenario, build_target(scenario.target).center_m)
+    rendered = frames_to_render(scenario, track)
+    rows = plan_table_rows(track)
+    table = Table(title=f"frame plan of '{scenario.name}'")
+    for column in rows[0]:
+        table.add_column(column, justify="right")
+    shown = range(len(rows))
+    if len(rows) > _PLAN_ROWS_SHOWN:
+        half = _PLAN_ROWS_SHOWN // 2
+        shown = [*range(half), -1, *range(len(rows) - half, len(rows))]
+    for i in shown:
+        if i < 0:
+            table.add_row(*(["..."] * len(rows[0])))
+        else:
+            table.add_row(*(str(value) for value in rows[i].values()))
+    Console().print(table)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    csv_path = out_dir / "plan.csv"
+    write_plan_csv(track, csv_path)
+    written = [csv_path]
+    if not no_plots:
+        written += write_plan_plots(track, out_dir, f"{scenario.name}: frame plan")
+    visible = int(track.visible.sum())
+    console.print(
+        f"{len(track)} frames planned, {visible} pass the visibility tests, "
+        f"{len(rendered)} would be rendered (on_fail: "
+        f"{scenario.visibility.on_fail if scenario.sampler is not None else 'n/a'}); "
+        f"range {track.range_m.min() / 1e3:.3g} to {track.range_m.max() / 1e3:.3g} km"
+    )
+    console.print("wrote " + ", ".join(str(p) for p in written))
 
 
 @cli.command()
@@ -167,9 +222,14 @@ def ablate(
             )
     if reference_spp < spp:
         raise SatsightError(f"--reference-spp ({reference_spp}) must be >= --spp ({spp})")
-    frames = len(scenario.frames) if max_frames is None else min(max_frames, len(scenario.frames))
+    planned: list[int] = []
+
+    def on_plan(count: int) -> None:
+        planned.append(count)
+        progress.update(task, total=count * (len(VARIANTS) + 1))
+
     with _progress() as progress:
-        task = progress.add_task("ablation renders", total=frames * (len(VARIANTS) + 1))
+        task = progress.add_task("ablation renders", total=None)
         result = run_ablation(
             scenario,
             samples_per_pixel=spp,
@@ -177,10 +237,12 @@ def ablate(
             width_px=width_px,
             max_frames=max_frames,
             bounces=bounces,
+            on_plan=on_plan,
             on_render=lambda name, index: progress.update(
                 task, advance=1, description=f"ablation: {name}"
             ),
         )
+    frames = planned[0]
     with staged_folder(out_dir, overwrite) as root:
         write_csv(root / "ablation.csv", result.rows)
         write_figure(

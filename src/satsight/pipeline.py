@@ -23,9 +23,13 @@ from satsight.dataset.labels import frame_labels
 from satsight.dataset.preview import crop_box_xyxy_px, thumbnail, write_contact_sheet
 from satsight.dataset.staging import check_output_folder, staged_folder
 from satsight.dataset.writer import LABELS_FORMAT, write_frame, write_labels
+from satsight.ephemeris.sun_moon import AU_M
 from satsight.errors import SatsightError
 from satsight.lighting.bodies import environment_light_field
 from satsight.lighting.light_field import LightField
+from satsight.poses.plan import frames_to_render, plan_track
+from satsight.poses.track import PoseTrack
+from satsight.render.buffers import SunLight
 from satsight.render.renderer import Renderer
 from satsight.scene.loading import load_mesh
 from satsight.scene.mesh import TargetMesh
@@ -61,25 +65,75 @@ def build_target(config: TargetConfig) -> TargetMesh:
     return load_mesh(config.mesh.path, scale_m=config.mesh.scale_m)
 
 
-def build_light_field(scenario: Scenario) -> LightField:
-    """The light at the target: the Sun, plus earthshine and moonshine when configured."""
-    sun = scenario.sun.build()
+def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[LightField, SunLight]:
+    """The light at the target in frame ``index`` of the plan, in the body frame.
+
+    The Sun's in-band irradiance is the scenario's value at 1 AU scaled by the inverse square
+    of the frame's Sun distance; the Earth and the Moon are lit by all of it, the target by
+    its ``sunlit_fraction`` (partly or wholly in the Earth's shadow). Earthshine and moonshine
+    are included when the scenario has ``earth`` / ``moon`` sections.
+    """
+    R_body_from_cam = track.cam_from_body(index).R_a_from_b.T
+    sun_config = scenario.sun
+    if scenario.sampler is None:
+        irradiance = sun_config.in_band_irradiance_w_m2
+    else:
+        at_1_au = sun_config.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
+        irradiance = at_1_au * (AU_M / track.sun_distance_m[index]) ** 2
+    sun_body = R_body_from_cam @ track.sun_from_target_cam[index]
+    at_target = irradiance * float(track.sunlit_fraction[index])
+
+    def center_body(direction_cam: np.ndarray, distance_m: float) -> np.ndarray:
+        return R_body_from_cam @ (direction_cam * distance_m)
+
     earth, moon = scenario.earth, scenario.moon
-    return environment_light_field(
-        sun.direction_body,
-        sun.irradiance_w_m2,
-        earth_center_from_target_m=None if earth is None else earth.center_from_target_m(),
+    light = environment_light_field(
+        sun_body,
+        irradiance,
+        earth_center_from_target_m=None
+        if earth is None
+        else center_body(track.earth_from_target_cam[index], track.earth_distance_m[index]),
         earth_albedo=0.30 if earth is None else earth.albedo,
-        moon_center_from_target_m=None if moon is None else moon.center_from_target_m(),
+        moon_center_from_target_m=None
+        if moon is None
+        else center_body(track.moon_from_target_cam[index], track.moon_distance_m[index]),
         moon_albedo=0.12 if moon is None else moon.albedo,
         l_max=scenario.render.sh_order,
+        sun_irradiance_at_target_w_m2=at_target,
     )
+    return light, SunLight(sun_body, at_target)
+
+
+def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:
+    """The scenario's frame plan and the indices of the frames to render."""
+    track = plan_track(scenario, mesh.center_m)
+    indices = frames_to_render(scenario, track)
+    if indices.size == 0:
+        raise SatsightError(
+            f"none of the {len(track)} planned frames passes the visibility tests, and "
+            "visibility.on_fail is 'skip'; run 'satsight plan' to see why, then change the "
+            "scenario or set on_fail to 'flag'"
+        )
+    return track, indices
 
 
 def frame_seed(scenario_seed: int, frame_index: int) -> int:
     """The render seed of one frame, independent of which other frames are rendered."""
     state = np.random.SeedSequence([scenario_seed, frame_index]).generate_state(2, np.uint32)
     return int(state[0]) << 32 | int(state[1])
+
+
+def _thumbnail_title(
+    index: int, track: PoseTrack, plan_index: int, labels: dict, crop_width_px: int
+) -> str:
+    plan = track.record(plan_index)
+    when = f"t = {plan['time_s']:.0f} s, " if plan["epoch_utc"] else ""
+    flags = "" if plan["visible"] else "  [fails visibility]"
+    return (
+        f"#{index}  {when}{track.range_m[plan_index] / 1e3:.3g} km, "
+        f"phase {labels['phase_angle_deg']:.0f}°{flags}\n"
+        f"{labels['object_pixel_count']} px on target; crop {crop_width_px} px wide"
+    )
 
 
 @dataclass(frozen=True)
@@ -117,8 +171,7 @@ def run_scenario(
     started = time.perf_counter()
     mesh = build_target(scenario.target)
     camera = scenario.camera.build()
-    sun = scenario.sun.build()
-    light = build_light_field(scenario)
+    track, indices = planned_frames(scenario, mesh)
     renderer = Renderer(mesh, scenario.render.settings(), scenario.render.variant)
     frames, thumbs, titles, render_seconds = [], [], [], []
     with (
@@ -129,12 +182,12 @@ def run_scenario(
         (root / "model").mkdir()
         write_obj(mesh, root / "model" / "target.obj")
         writes: list[Future] = []
-        for index, frame in enumerate(scenario.frames):
-            view = frame.build()
-            cam_from_body = view.cam_from_body(mesh.center_m)
+        for index, plan_index in enumerate(indices):
+            cam_from_body = track.cam_from_body(plan_index)
+            light, sun = frame_light(scenario, track, plan_index)
             t0 = time.perf_counter()
             image = renderer.render(
-                camera, cam_from_body, light, seed=frame_seed(scenario.seed, index)
+                camera, cam_from_body, light, seed=frame_seed(scenario.seed, int(plan_index))
             )
             render_seconds.append(time.perf_counter() - t0)
             labels = frame_labels(mesh, camera, cam_from_body, sun, image)
@@ -143,17 +196,19 @@ def run_scenario(
             writes.append(writers.submit(write_frame, root, index, image))
             if index >= _WRITER_THREADS:
                 writes[index - _WRITER_THREADS].result()
-            frames.append({"frame_index": index, "view": frame.model_dump(), **labels})
+            record = {"frame_index": index, "plan_index": int(plan_index)}
+            if scenario.frames:
+                record["view"] = scenario.frames[plan_index].model_dump()
+            record["plan"] = track.record(plan_index)
+            record["sun_direction_body"] = sun.direction_body.tolist()
+            record["environment_sh_radiance_w_m2_sr"] = light.sh_radiance_w_m2_sr.tolist()
+            frames.append({**record, **labels})
             x0, y0, x1, y1 = crop_box_xyxy_px(labels["bbox_xyxy_px"], image.shape)
             thumbs.append(thumbnail(image.radiance_w_m2_sr[y0:y1, x0:x1]))
-            titles.append(
-                f"#{index}  {frame.distance_km:g} km, az {frame.azimuth_deg:g}°, "
-                f"el {frame.elevation_deg:g}°, phase {labels['phase_angle_deg']:.0f}°\n"
-                f"{labels['object_pixel_count']} px on target; crop {x1 - x0} px wide"
-            )
+            titles.append(_thumbnail_title(index, track, plan_index, labels, x1 - x0))
             del image
             if on_frame_done is not None:
-                on_frame_done(index + 1, len(scenario.frames))
+                on_frame_done(index + 1, len(indices))
         for record, write in zip(frames, writes, strict=True):
             record.update(write.result())
         (root / "scenario.yaml").write_text(
@@ -182,17 +237,17 @@ def run_scenario(
                     "fov_y_deg": float(np.degrees(camera.fov_y_rad)),
                 },
                 "sun": {
-                    "direction_body": sun.direction_body.tolist(),
-                    "irradiance_w_m2": sun.irradiance_w_m2,
+                    "description": "per frame: sun_direction_body, sun_direction_cam and "
+                    "sun_irradiance_w_m2 (in band, at the target, after the Earth's shadow)",
                     "spectrum": scenario.sun.spectrum,
                     "band_nm": list(scenario.sun.band_nm),
                 },
                 "render_settings": dataclasses.asdict(renderer.settings),
                 "environment_light": {
-                    "description": "earthshine and moonshine as real SH, index l(l+1)+m, "
-                    "body frame, direction towards the source",
-                    "sh_order": light.l_max,
-                    "sh_radiance_w_m2_sr": light.sh_radiance_w_m2_sr.tolist(),
+                    "description": "per frame: environment_sh_radiance_w_m2_sr, earthshine "
+                    "and moonshine as real SH, index l(l+1)+m, body frame, direction towards "
+                    "the source",
+                    "sh_order": scenario.render.sh_order,
                 },
                 "target": {
                     **mesh.summary(),

@@ -100,7 +100,7 @@ def test_missing_frames_says_required() -> None:
     data = _minimal()
     del data["frames"]
     message = _error_lines(data)
-    assert "frames: required key is missing" in message
+    assert "no frames: give a list of 'frames', or a 'sampler'" in message
 
 
 def test_empty_frame_list_is_refused() -> None:

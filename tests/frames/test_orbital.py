@@ -17,7 +17,12 @@ from satsight.ephemeris.orbits import (
     state_from_elements,
 )
 from satsight.errors import SatsightError
-from satsight.frames.orbital import lvlh_from_inertial, relative_rtn, rtn_from_inertial
+from satsight.frames.orbital import (
+    inertial_from_relative_rtn,
+    lvlh_from_inertial,
+    relative_rtn,
+    rtn_from_inertial,
+)
 
 ATOL = 1e-12
 PROPERTY = settings(max_examples=100, deadline=None)
@@ -131,3 +136,37 @@ def test_degenerate_or_malformed_states_are_rejected() -> None:
         rtn_from_inertial(r, np.array([0.0, np.inf, 0.0]))
     with pytest.raises(SatsightError, match="same shape"):
         relative_rtn(r, [0.0, 7.5e3, 0.0], np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+@PROPERTY
+@given(states(), states())
+def test_inertial_from_relative_rtn_inverts_relative_rtn(target, chaser) -> None:
+    r_t, v_t = target
+    r_c, v_c = chaser
+    rho, rho_dot = relative_rtn(r_t, v_t, r_c, v_c)
+    r_back, v_back = inertial_from_relative_rtn(r_t, v_t, rho, rho_dot)
+    # Relative to the largest magnitude involved: the differences are formed from both states.
+    position_scale_m = max(np.linalg.norm(r_t), np.linalg.norm(r_c))
+    velocity_scale_m_s = max(
+        np.linalg.norm(v_t),
+        np.linalg.norm(v_c),
+        np.linalg.norm(v_t) / np.linalg.norm(r_t) * np.linalg.norm(r_c - r_t),
+    )
+    np.testing.assert_allclose(r_back, r_c, rtol=0.0, atol=1e-9 * position_scale_m)
+    np.testing.assert_allclose(v_back, v_c, rtol=0.0, atol=1e-9 * velocity_scale_m_s)
+    # And the other way round, on a stack of states.
+    r_stack, v_stack = np.stack([r_t, r_c]), np.stack([v_t, v_c])
+    rho_stack, rho_dot_stack = np.stack([rho, -rho]), np.stack([rho_dot, 2.0 * rho_dot])
+    r_out, v_out = inertial_from_relative_rtn(r_stack, v_stack, rho_stack, rho_dot_stack)
+    rho_back, rho_dot_back = relative_rtn(r_stack, v_stack, r_out, v_out)
+    np.testing.assert_allclose(rho_back, rho_stack, rtol=0.0, atol=1e-9 * position_scale_m)
+    np.testing.assert_allclose(
+        rho_dot_back, rho_dot_stack, rtol=0.0, atol=1e-9 * 2.0 * velocity_scale_m_s
+    )
+
+
+def test_inertial_from_relative_rtn_rejects_mismatched_shapes() -> None:
+    r = np.array([7e6, 0.0, 0.0])
+    v = np.array([0.0, 7.5e3, 0.0])
+    with pytest.raises(SatsightError, match="same shape"):
+        inertial_from_relative_rtn(r, v, np.zeros((2, 3)), np.zeros((2, 3)))

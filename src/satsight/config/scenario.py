@@ -13,9 +13,25 @@ from typing import Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from satsight.camera.pinhole import CAMERA_PRESETS, PinholeCamera
+from satsight.config.orbital import (
+    AttitudeConfig,
+    ObserverConfig,
+    OrbitConfig,
+    PropagationConfig,
+    SamplerConfig,
+    VisibilityConfig,
+)
+from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, SPECTRA, band_irradiance_w_m2
 from satsight.poses.views import View, direction_from_angles
@@ -198,8 +214,24 @@ class RenderConfig(_Strict):
         )
 
 
+# Keys that place a body by hand; with frames planned from orbits they come from the
+# ephemeris and the orbit instead.
+_HAND_PLACED = {
+    "sun": ("azimuth_deg", "elevation_deg", "distance_au"),
+    "earth": ("azimuth_deg", "elevation_deg", "altitude_km"),
+    "moon": ("azimuth_deg", "elevation_deg", "distance_km"),
+}
+_ORBITAL_KEYS = ("epoch_utc", "orbit", "attitude", "observer", "visibility", "propagation")
+
+
 class Scenario(_Strict):
-    """A complete scenario: camera, target, sun, frames and render settings."""
+    """A complete scenario: camera, target, light, frames and render settings.
+
+    Frames come either from ``frames`` (viewpoints given in the target's body frame, with the
+    Sun, the Earth and the Moon placed by hand) or from ``sampler`` (frames planned from
+    orbits: ``epoch_utc``, the target's ``orbit`` and ``attitude``, the ``observer``'s mode
+    for SSPT, ``visibility`` limits; the Sun and the Moon come from the ephemeris).
+    """
 
     name: str = "scenario"
     seed: int = Field(default=0, ge=0)
@@ -208,8 +240,70 @@ class Scenario(_Strict):
     sun: SunConfig = SunConfig()
     earth: EarthConfig | None = None
     moon: MoonConfig | None = None
-    frames: list[FrameConfig] = Field(min_length=1)
+    frames: list[FrameConfig] = Field(default_factory=list)
+    epoch_utc: str | None = None
+    orbit: OrbitConfig | None = None
+    attitude: AttitudeConfig = AttitudeConfig()
+    observer: ObserverConfig | None = None
+    sampler: SamplerConfig | None = None
+    visibility: VisibilityConfig = VisibilityConfig()
+    propagation: PropagationConfig = PropagationConfig()
     render: RenderConfig = RenderConfig()
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _valid_epoch(cls, value: str | None) -> str | None:
+        if value is not None:
+            try:
+                parse_epoch_utc(value)
+            except SatsightError as error:
+                raise ValueError(str(error)) from None
+        return value
+
+    @model_validator(mode="after")
+    def _one_source_of_frames(self) -> Scenario:
+        if self.frames and self.sampler is not None:
+            raise ValueError(
+                "give either 'frames' (views in the body frame) or 'sampler' (frames planned "
+                "from orbits), not both"
+            )
+        if not self.frames and self.sampler is None:
+            raise ValueError(
+                "no frames: give a list of 'frames', or a 'sampler' (sspt or rssf) with "
+                "'epoch_utc' and 'orbit'"
+            )
+        if self.sampler is None:
+            unused = [key for key in _ORBITAL_KEYS if key in self.model_fields_set]
+            if unused:
+                raise ValueError(
+                    f"{', '.join(unused)} only apply to frames planned from orbits; add a "
+                    "'sampler' or remove them"
+                )
+            return self
+        missing = [key for key in ("epoch_utc", "orbit") if getattr(self, key) is None]
+        if missing:
+            raise ValueError(
+                f"a sampler plans frames from orbits and needs {' and '.join(missing)}"
+            )
+        if self.sampler.kind == "sspt" and self.observer is None:
+            raise ValueError(
+                "sampler sspt follows the observer's trajectory: add an 'observer' with a mode "
+                "(fly_around, fly_by, approach, hover, elements or relative_rtn)"
+            )
+        if self.sampler.kind == "rssf" and self.observer is not None:
+            raise ValueError("sampler rssf places the camera itself; remove 'observer'")
+        if self.sampler.kind == "sspt" and self.sampler.step_deg is not None:
+            if self.observer.mode != "fly_around":
+                raise ValueError("sampler step_deg applies only to observer mode fly_around")
+        for section, keys in _HAND_PLACED.items():
+            config = getattr(self, section)
+            placed = [] if config is None else sorted(set(keys) & config.model_fields_set)
+            if placed:
+                raise ValueError(
+                    f"{section}.{', '.join(placed)}: with frames planned from orbits the "
+                    f"{section}'s place comes from the ephemeris and the orbit; remove them"
+                )
+        return self
 
 
 def _format_validation_error(error: ValidationError, source: str) -> str:

@@ -114,3 +114,37 @@ def relative_rtn(
     rho_rtn = np.einsum("...ij,...j->...i", R, rho)
     rho_dot_rtn = np.einsum("...ij,...j->...i", R, rho_dot_rotating)
     return rho_rtn, rho_dot_rtn
+
+
+def inertial_from_relative_rtn(
+    r_target_m: np.ndarray,
+    v_target_m_s: np.ndarray,
+    rho_rtn_m: np.ndarray,
+    rho_dot_rtn_m_s: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The chaser's inertial position (m) and velocity (m/s) from its state relative to a target.
+
+    The exact inverse of `relative_rtn`, with the same frame rate
+    ``omega = (r_target x v_target) / |r_target|^2``. With ``R = R_rtn_from_inertial`` of the
+    target and ``rho = R^T rho_rtn`` the offset in inertial axes:
+
+        r_chaser = r_target + rho
+        v_chaser = v_target + R^T rho_dot_rtn + omega x rho
+
+    r_target_m, v_target_m_s: the target's inertial state; rho_rtn_m, rho_dot_rtn_m_s: the
+    chaser's position and rate of change seen in the target's rotating RTN frame (rows R, T,
+    N). All shapes (3,) or (N, 3), all the same. Returns (r_chaser_m, v_chaser_m_s), each of
+    the input shape.
+    """
+    r_t, v_t = _check_states(r_target_m, v_target_m_s)
+    rho_rtn, rho_dot_rtn = _check_states(rho_rtn_m, rho_dot_rtn_m_s)
+    if rho_rtn.shape != r_t.shape:
+        raise SatsightError(
+            f"the target state and the relative state must have the same shape; got "
+            f"{r_t.shape} and {rho_rtn.shape}"
+        )
+    R = rtn_from_inertial(r_t, v_t)
+    omega = np.cross(r_t, v_t) / np.sum(r_t * r_t, axis=-1, keepdims=True)
+    rho = np.einsum("...ji,...j->...i", R, rho_rtn)
+    rho_dot_rotating = np.einsum("...ji,...j->...i", R, rho_dot_rtn)
+    return r_t + rho, v_t + rho_dot_rotating + np.cross(omega, rho)

@@ -1,0 +1,295 @@
+"""Scenario keys for frames planned from orbits: the target's orbit and attitude, the
+observer's operational mode, the viewpoint sampler, and the visibility limits.
+
+Non-SI units appear only here, in the key's name (``semi_major_axis_km``, ``radius_km``,
+``rate_body_deg_s``); ``satsight.poses.plan`` converts them to SI.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M, OrbitalElements
+from satsight.ephemeris.visibility import DEFAULT_ATMOSPHERE_MARGIN_M, VisibilityLimits
+from satsight.poses.attitude import ROLL_POLICIES
+from satsight.poses.samplers import APPROACH_INTERVALS_KM, HOVER_DISTANCE_KM
+
+# Lowest perigee accepted: below ~100 km an orbit decays within hours.
+MIN_PERIGEE_ALTITUDE_KM = 100.0
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+Vector3 = tuple[float, float, float]
+
+
+class OrbitConfig(_Strict):
+    """Osculating classical elements at the scenario epoch, GCRS (km and degrees)."""
+
+    semi_major_axis_km: float = Field(gt=0)
+    eccentricity: float = Field(default=0.0, ge=0, lt=1)
+    inclination_deg: float = Field(default=0.0, ge=0, le=180)
+    raan_deg: float = 0.0
+    arg_perigee_deg: float = 0.0
+    true_anomaly_deg: float = 0.0
+
+    @model_validator(mode="after")
+    def _above_ground(self) -> OrbitConfig:
+        perigee_km = self.semi_major_axis_km * (1.0 - self.eccentricity)
+        floor_km = EARTH_EQUATORIAL_RADIUS_M / 1e3 + MIN_PERIGEE_ALTITUDE_KM
+        if perigee_km < floor_km:
+            raise ValueError(
+                f"the perigee radius a (1 - e) = {perigee_km:.1f} km is below {floor_km:.1f} km "
+                f"(the Earth's equatorial radius plus {MIN_PERIGEE_ALTITUDE_KM:g} km); "
+                "semi_major_axis_km is measured from the Earth's centre, not the surface"
+            )
+        return self
+
+    def build(self) -> OrbitalElements:
+        return OrbitalElements.from_km_deg(
+            self.semi_major_axis_km,
+            self.eccentricity,
+            self.inclination_deg,
+            self.raan_deg,
+            self.arg_perigee_deg,
+            self.true_anomaly_deg,
+        )
+
+
+def _unit_quaternion(q: tuple[float, float, float, float], name: str) -> np.ndarray:
+    array = np.asarray(q, dtype=np.float64)
+    norm = float(np.linalg.norm(array))
+    if not norm > 1e-9:
+        raise ValueError(f"{name} must be a non-zero quaternion [qw, qx, qy, qz]")
+    if abs(norm - 1.0) > 1e-3:
+        raise ValueError(
+            f"{name} must be a unit quaternion [qw, qx, qy, qz] (norm 1 to 1e-3); its norm is "
+            f"{norm:.6g}"
+        )
+    return array / norm
+
+
+class AttitudeConfig(_Strict):
+    """How the target's body frame turns.
+
+    ``lvlh_fixed``: three-axis stabilised in its local orbital frame (LVLH, CCSDS) with the
+    fixed offset ``q_ref_from_body`` = q_lvlh_from_body. ``inertial``: fixed in GCRS,
+    ``q_ref_from_body`` = q_gcrs_from_body. ``spinning``: starts at ``q_ref_from_body`` =
+    q_gcrs_from_body at the epoch and turns at the constant body-frame rate
+    ``rate_body_deg_s``.
+    """
+
+    law: Literal["lvlh_fixed", "inertial", "spinning"] = "lvlh_fixed"
+    q_ref_from_body: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    rate_body_deg_s: Vector3 = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _check(self) -> AttitudeConfig:
+        _unit_quaternion(self.q_ref_from_body, "attitude.q_ref_from_body")
+        if self.law != "spinning" and any(self.rate_body_deg_s):
+            raise ValueError("rate_body_deg_s applies only to law: spinning")
+        return self
+
+    @property
+    def q_ref_from_body_unit(self) -> np.ndarray:
+        return _unit_quaternion(self.q_ref_from_body, "attitude.q_ref_from_body")
+
+    @property
+    def rate_body_rad_s(self) -> np.ndarray:
+        return np.radians(np.asarray(self.rate_body_deg_s, dtype=np.float64))
+
+
+class _ObserverBase(_Strict):
+    """How the camera rolls about its boresight (see satsight.poses.attitude)."""
+
+    camera_roll: Literal[ROLL_POLICIES] = "orbit_normal"
+    roll_deg: float = 0.0
+
+
+class FlyAroundConfig(_ObserverBase):
+    """A natural closed relative orbit at constant range (Clohessy-Wiltshire), one
+    revolution per target orbit."""
+
+    mode: Literal["fly_around"]
+    radius_km: float = Field(gt=0, le=1000)
+    phase_deg: float = 0.0
+
+
+class FlyByConfig(_ObserverBase):
+    """A co-elliptic pass: the observer drifts along-track at a constant radial offset."""
+
+    mode: Literal["fly_by"]
+    miss_distance_km: float = Field(description="radial offset; > 0 above the target")
+    start_along_track_km: float
+
+    @model_validator(mode="after")
+    def _passes(self) -> FlyByConfig:
+        if self.miss_distance_km == 0:
+            raise ValueError("miss_distance_km must be non-zero (0 would not drift)")
+        if self.start_along_track_km * self.miss_distance_km <= 0:
+            raise ValueError(
+                "the observer never passes the target: above it (miss_distance_km > 0) it "
+                "drifts towards -T, so start_along_track_km must be > 0; below it, < 0"
+            )
+        return self
+
+
+class ApproachConfig(_ObserverBase):
+    """A guided spiral approach from ``start_range_km`` to ``end_range_km`` (the paper's
+    six intervals by default: 50 km to 0.5 km)."""
+
+    mode: Literal["approach"]
+    start_range_km: float = Field(default=APPROACH_INTERVALS_KM[0][0], gt=0)
+    end_range_km: float = Field(default=APPROACH_INTERVALS_KM[-1][1], gt=0)
+    revolutions: float = Field(default=3.0, gt=0, le=1000)
+
+    @model_validator(mode="after")
+    def _inwards(self) -> ApproachConfig:
+        if not self.end_range_km < self.start_range_km:
+            raise ValueError("end_range_km must be smaller than start_range_km")
+        return self
+
+
+class HoverConfig(_ObserverBase):
+    """Station keeping on the target's orbit, ``range_km`` ahead of it (the paper's initial view:
+    boresight along -T, image +x along N) or behind it."""
+
+    mode: Literal["hover"]
+    range_km: float = Field(default=HOVER_DISTANCE_KM, gt=0, le=1000)
+    side: Literal["ahead", "behind"] = "ahead"
+
+
+class ObserverElementsConfig(_ObserverBase):
+    """The observer on its own orbit (the paper's OE1 / OE2), propagated like the target."""
+
+    mode: Literal["elements"]
+    orbit: OrbitConfig
+
+
+class RelativeRtnConfig(_ObserverBase):
+    """The observer's initial state relative to the target in the target's RTN frame."""
+
+    mode: Literal["relative_rtn"]
+    position_rtn_km: Vector3
+    velocity_rtn_m_s: Vector3 = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _apart(self) -> RelativeRtnConfig:
+        if not any(self.position_rtn_km):
+            raise ValueError(
+                "position_rtn_km must not be [0, 0, 0]: the observer would sit inside the target"
+            )
+        return self
+
+
+ObserverConfig = Annotated[
+    FlyAroundConfig
+    | FlyByConfig
+    | ApproachConfig
+    | HoverConfig
+    | ObserverElementsConfig
+    | RelativeRtnConfig,
+    Field(discriminator="mode"),
+]
+NATURAL_SPAN_MODES = ("fly_around", "fly_by", "approach", "hover")
+
+
+class SsptConfig(_Strict):
+    """Sequential frames along the observer's trajectory.
+
+    The span starts at ``start_s`` after the epoch and lasts ``duration_s`` (default: one
+    target orbit for fly-around and hover, the whole pass for a fly-by, ``revolutions``
+    orbits for an approach). Frames are either ``frame_count`` uniform samples of the span
+    (both ends included), one every ``step_s`` seconds, or, for a fly-around, one every
+    ``step_deg`` degrees of its revolution.
+    """
+
+    kind: Literal["sspt"]
+    start_s: float = Field(default=0.0, ge=0)
+    duration_s: float | None = Field(default=None, gt=0, le=366 * 86400)
+    frame_count: int | None = Field(default=None, ge=1, le=1_000_000)
+    step_s: float | None = Field(default=None, gt=0)
+    step_deg: float | None = Field(default=None, gt=0, le=360)
+
+    @model_validator(mode="after")
+    def _one_spacing(self) -> SsptConfig:
+        given = [k for k in ("frame_count", "step_s", "step_deg") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(
+                "give exactly one of frame_count, step_s or step_deg"
+                + (f" (got {', '.join(given)})" if given else "")
+            )
+        return self
+
+
+class RssfConfig(_Strict):
+    """Random views on seeded spherical Fibonacci lattices about the target, all at the
+    scenario epoch, with balanced counts over the distance intervals."""
+
+    kind: Literal["rssf"]
+    frame_count: int = Field(ge=1, le=1_000_000)
+    seed: int = Field(default=5, ge=0)
+    intervals_km: tuple[tuple[float, float], ...] = APPROACH_INTERVALS_KM
+    include_hover: bool = True
+    hover_range_km: float = Field(default=HOVER_DISTANCE_KM, gt=0, le=1000)
+    distance_distribution: Literal["uniform", "log_uniform"] = "uniform"
+    camera_roll: Literal[ROLL_POLICIES] = "orbit_normal"
+
+    @model_validator(mode="after")
+    def _intervals(self) -> RssfConfig:
+        for far, near in self.intervals_km:
+            if not 0 < near < far:
+                raise ValueError(
+                    f"each interval is [far_km, near_km] with far > near > 0; got {[far, near]}"
+                )
+        if not self.intervals_km and not self.include_hover:
+            raise ValueError("no distance interval: give intervals_km or include_hover: true")
+        return self
+
+
+SamplerConfig = Annotated[SsptConfig | RssfConfig, Field(discriminator="kind")]
+
+
+class VisibilityConfig(_Strict):
+    """Which frames count as observable, and what to do with the others.
+
+    ``on_fail``: ``flag`` renders every frame and records the failed tests in the labels;
+    ``skip`` leaves failing frames out of the dataset (the plan still lists them);
+    ``keep`` applies no limits (the measured values are still recorded).
+    """
+
+    atmosphere_margin_km: float = Field(default=DEFAULT_ATMOSPHERE_MARGIN_M / 1e3, ge=0)
+    min_sunlit_fraction: float = Field(default=1.0, ge=0, le=1)
+    sun_exclusion_deg: float = Field(default=30.0, ge=0, le=180)
+    min_phase_angle_deg: float = Field(default=0.0, ge=0, le=180)
+    max_phase_angle_deg: float = Field(default=150.0, ge=0, le=180)
+    on_fail: Literal["flag", "skip", "keep"] = "flag"
+
+    @model_validator(mode="after")
+    def _ordered(self) -> VisibilityConfig:
+        if self.min_phase_angle_deg > self.max_phase_angle_deg:
+            raise ValueError("min_phase_angle_deg must not exceed max_phase_angle_deg")
+        return self
+
+    def limits(self) -> VisibilityLimits:
+        return VisibilityLimits(
+            atmosphere_margin_m=self.atmosphere_margin_km * 1e3,
+            min_sunlit_fraction=self.min_sunlit_fraction,
+            sun_exclusion_rad=math.radians(self.sun_exclusion_deg),
+            min_phase_angle_rad=math.radians(self.min_phase_angle_deg),
+            max_phase_angle_rad=math.radians(self.max_phase_angle_deg),
+        )
+
+
+class PropagationConfig(_Strict):
+    """How both spacecraft are propagated: RK4 at a fixed step (the paper: 1 s) or DOP853."""
+
+    method: Literal["rk4", "dop853"] = "rk4"
+    step_s: float = Field(default=1.0, gt=0, le=600)
+    j2: bool = True

@@ -1,0 +1,382 @@
+"""The frame plan of a scenario: from its keys to a ``PoseTrack``.
+
+Two sources of frames:
+
+- **Views in the body frame** (``frames:``): each frame places the camera by distance,
+  azimuth, elevation and roll about the target; the Sun, the Earth and the Moon are placed by
+  hand in the body frame. No orbit and no visibility tests.
+- **Frames planned from orbits** (``sampler:``): the target flies on ``orbit`` from
+  ``epoch_utc`` and turns by its ``attitude`` law; the Sun and the Moon come from the DE421
+  ephemeris; the Earth is at the origin of GCRS.
+
+  - ``sspt``: the observer follows its operational mode (fly-around, fly-by, approach, hover,
+    its own elements or an RTN initial state) and frames are taken at uniform times.
+    Fly-around, fly-by, hover and RTN initial states are natural motion: the observer's
+    initial state is built in the target's RTN frame and both spacecraft are propagated with
+    the same dynamics (two-body + J2, RK4 at 1 s by default). The approach is a guided spiral
+    (it needs thrust), placed kinematically in RTN.
+  - ``rssf``: all frames at the epoch; the camera is placed about the target on seeded
+    spherical Fibonacci lattices (body frame), one per distance interval, with a random roll.
+
+The camera always looks at the target's bounding-box centre; its roll about the boresight
+follows the observer's ``camera_roll`` policy (see ``satsight.poses.attitude``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from satsight.config.scenario import Scenario
+from satsight.ephemeris.orbits import (
+    EARTH_EQUATORIAL_RADIUS_M,
+    J2,
+    MU_EARTH_M3_S2,
+    OrbitalElements,
+    orbital_period_s,
+    propagate,
+    state_from_elements,
+)
+from satsight.ephemeris.sun_moon import AU_M, moon_position_gcrs_m, sun_position_gcrs_m
+from satsight.ephemeris.time import epoch_times, format_epoch_utc
+from satsight.ephemeris.visibility import assess_visibility
+from satsight.errors import SatsightError
+from satsight.frames.orbital import inertial_from_relative_rtn, rtn_from_inertial
+from satsight.frames.quaternion import matrix_from_quaternion
+from satsight.poses import relative_motion as rm
+from satsight.poses.attitude import (
+    cam_from_body,
+    camera_reference,
+    inertial_attitude,
+    lvlh_fixed_attitude,
+    pointing_gcrs_from_cam,
+    spinning_attitude,
+)
+from satsight.poses.samplers import (
+    DistanceInterval,
+    default_intervals,
+    interval_name_for_range,
+    rssf_samples,
+    sspt_angle_times_s,
+    sspt_times_s,
+)
+from satsight.poses.track import FLAG_FIELDS, PoseTrack
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _angle_rad(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    cos = np.sum(_unit_rows(a) * _unit_rows(b), axis=-1)
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def plan_track(scenario: Scenario, target_center_body_m: np.ndarray) -> PoseTrack:
+    """Every frame of ``scenario`` (before the visibility policy drops any).
+
+    target_center_body_m: (3,) the target's bounding-box centre in the body frame, m; the
+    camera looks at it.
+    """
+    center = np.asarray(target_center_body_m, dtype=np.float64).reshape(3)
+    if scenario.sampler is None:
+        return _views_track(scenario, center)
+    return _orbital_track(scenario, center)
+
+
+def frames_to_render(scenario: Scenario, track: PoseTrack) -> np.ndarray:
+    """Indices of the planned frames that are rendered under the visibility policy."""
+    if scenario.sampler is not None and scenario.visibility.on_fail == "skip":
+        return np.flatnonzero(track.visible)
+    return np.arange(len(track))
+
+
+# --- views given in the body frame ---------------------------------------------------------
+
+
+def _views_track(scenario: Scenario, center: np.ndarray) -> PoseTrack:
+    n = len(scenario.frames)
+    poses = [frame.build().cam_from_body(center) for frame in scenario.frames]
+    R = np.stack([p.R_a_from_b for p in poses])
+    sun_body = scenario.sun.build().direction_body
+    sun_cam = R @ sun_body
+    nan3 = np.full((n, 3), np.nan)
+    nan = np.full(n, np.nan)
+
+    def body_in_cam(config) -> tuple[np.ndarray, np.ndarray]:
+        if config is None:
+            return nan3, nan
+        vector = config.center_from_target_m()
+        return R @ (vector / np.linalg.norm(vector)), np.full(n, np.linalg.norm(vector))
+
+    earth_dir, earth_dist = body_in_cam(scenario.earth)
+    moon_dir, moon_dist = body_in_cam(scenario.moon)
+    center_cam = np.einsum("nij,j->ni", R, center) + np.stack([p.t_a_from_b_m for p in poses])
+    range_m = np.linalg.norm(center_cam, axis=1)
+    boresight = np.tile([0.0, 0.0, 1.0], (n, 1))
+    no = np.zeros(n, dtype=bool)
+    intervals = default_intervals(include_hover=True)
+    return PoseTrack(
+        time_s=np.zeros(n),
+        epoch_utc=("",) * n,
+        q_cam_from_body=np.stack([p.q_a_from_b for p in poses]),
+        t_cam_from_body_m=np.stack([p.t_a_from_b_m for p in poses]),
+        sun_from_target_cam=sun_cam,
+        sun_distance_m=np.full(n, scenario.sun.distance_au * AU_M),
+        earth_from_target_cam=earth_dir,
+        earth_distance_m=earth_dist,
+        moon_from_target_cam=moon_dir,
+        moon_distance_m=moon_dist,
+        rho_rtn_m=nan3,
+        range_m=range_m,
+        phase_angle_rad=_angle_rad(sun_cam, -center_cam),
+        sunlit_fraction=np.ones(n),
+        los_clearance_m=np.full(n, np.inf),
+        sun_boresight_angle_rad=_angle_rad(sun_cam, boresight),
+        earth_occulted=no,
+        eclipsed=no,
+        sun_excluded=no,
+        phase_rejected=no,
+        interval=tuple(interval_name_for_range(r, intervals) for r in range_m),
+    )
+
+
+# --- frames planned from orbits ------------------------------------------------------------
+
+
+def _mean_motion_rad_s(elements: OrbitalElements) -> float:
+    return math.sqrt(MU_EARTH_M3_S2 / elements.semi_major_axis_m**3)
+
+
+def natural_span_s(scenario: Scenario) -> float:
+    """The default length of an SSPT span for the scenario's observer mode, s."""
+    elements = scenario.orbit.build()
+    period = orbital_period_s(elements.semi_major_axis_m)
+    observer = scenario.observer
+    if observer.mode == "fly_by":
+        n = _mean_motion_rad_s(elements)
+        drift_m_s = 1.5 * n * abs(observer.miss_distance_km * 1e3)
+        return 2.0 * abs(observer.start_along_track_km * 1e3) / drift_m_s
+    if observer.mode == "approach":
+        return observer.revolutions * period
+    return period
+
+
+def _sspt_times(scenario: Scenario) -> np.ndarray:
+    sampler = scenario.sampler
+    duration = sampler.duration_s or natural_span_s(scenario)
+    start, end = sampler.start_s, sampler.start_s + duration
+    if sampler.step_deg is not None:
+        period = orbital_period_s(scenario.orbit.semi_major_axis_km * 1e3)
+        # The fly-around turns 360 degrees per target orbit from the start of the span.
+        stop_deg = 360.0 * duration / period
+        return sspt_angle_times_s(period, 0.0, stop_deg, sampler.step_deg, start_s=start)
+    return sspt_times_s(start, end, frame_count=sampler.frame_count, step_s=sampler.step_s)
+
+
+def _specific_energy(r: np.ndarray, v: np.ndarray, j2: bool) -> float:
+    """Orbital energy per unit mass, J/kg, with the J2 potential when j2 is on."""
+    rn = float(np.linalg.norm(r))
+    energy = 0.5 * float(v @ v) - MU_EARTH_M3_S2 / rn
+    if j2:
+        sin_lat2 = (r[2] / rn) ** 2
+        energy += (
+            MU_EARTH_M3_S2
+            / rn
+            * J2
+            * (EARTH_EQUATORIAL_RADIUS_M / rn) ** 2
+            * 0.5
+            * (3.0 * sin_lat2 - 1.0)
+        )
+    return energy
+
+
+def _match_energy(
+    r_obs: np.ndarray, v_obs: np.ndarray, r_target: np.ndarray, v_target: np.ndarray, j2: bool
+) -> np.ndarray:
+    """The observer's velocity rescaled so its orbital energy equals the target's.
+
+    Equal energy means equal (mean) semi-major axis, hence no secular along-track drift: the
+    linear Clohessy-Wiltshire initial state of a closed relative orbit drifts under the full
+    dynamics by its second-order energy error, about 3 pi (dE / (n a)) per orbit.
+    """
+    target_energy = _specific_energy(r_target, v_target, j2)
+    potential = _specific_energy(r_obs, np.zeros(3), j2)
+    speed = math.sqrt(2.0 * (target_energy - potential))
+    return v_obs * (speed / float(np.linalg.norm(v_obs)))
+
+
+def _observer_initial_state(
+    scenario: Scenario, r0: np.ndarray, v0: np.ndarray, elements: OrbitalElements
+) -> tuple[np.ndarray, np.ndarray]:
+    """The observer's inertial state at the epoch for a natural-motion mode."""
+    observer = scenario.observer
+    n = _mean_motion_rad_s(elements)
+    j2 = scenario.propagation.j2
+    if observer.mode == "elements":
+        return state_from_elements(observer.orbit.build())
+    if observer.mode == "hover":
+        # Same orbit, earlier (behind) or later (ahead) by the angle whose chord is the range.
+        radius = float(np.linalg.norm(r0))
+        if observer.range_km * 1e3 >= 2.0 * radius:
+            raise SatsightError("hover range_km exceeds the target orbit's diameter")
+        shift = 2.0 * math.asin(observer.range_km * 1e3 / (2.0 * radius))
+        sign = -1.0 if observer.side == "behind" else 1.0
+        shifted = OrbitalElements(
+            elements.semi_major_axis_m,
+            elements.eccentricity,
+            elements.inclination_rad,
+            elements.raan_rad,
+            elements.arg_perigee_rad,
+            elements.true_anomaly_rad + sign * shift,
+        )
+        r, v = state_from_elements(shifted)
+        return r, _match_energy(r, v, r0, v0, j2)
+    if observer.mode == "fly_around":
+        rho, rho_dot = rm.fly_around_initial_state(
+            observer.radius_km * 1e3, n, phase_rad=math.radians(observer.phase_deg)
+        )
+        r, v = inertial_from_relative_rtn(r0, v0, rho, rho_dot)
+        return r, _match_energy(r, v, r0, v0, j2)
+    if observer.mode == "fly_by":
+        rho, rho_dot = rm.fly_by_initial_state(
+            observer.miss_distance_km * 1e3, observer.start_along_track_km * 1e3, n
+        )
+        return inertial_from_relative_rtn(r0, v0, rho, rho_dot)
+    if observer.mode == "relative_rtn":
+        rho = np.asarray(observer.position_rtn_km, dtype=np.float64) * 1e3
+        rho_dot = np.asarray(observer.velocity_rtn_m_s, dtype=np.float64)
+        return inertial_from_relative_rtn(r0, v0, rho, rho_dot)
+    raise SatsightError(f"observer mode {observer.mode!r} is not a natural-motion mode")
+
+
+def _target_attitude(
+    scenario: Scenario, r: np.ndarray, v: np.ndarray, times_s: np.ndarray
+) -> np.ndarray:
+    attitude = scenario.attitude
+    q_ref = attitude.q_ref_from_body_unit
+    if attitude.law == "lvlh_fixed":
+        return lvlh_fixed_attitude(r, v, q_ref)
+    if attitude.law == "inertial":
+        return inertial_attitude(q_ref, len(times_s))
+    return spinning_attitude(q_ref, attitude.rate_body_rad_s, times_s)
+
+
+def _rssf_intervals(scenario: Scenario) -> tuple[DistanceInterval, ...]:
+    sampler = scenario.sampler
+    intervals = [
+        DistanceInterval(far_m=far * 1e3, near_m=near * 1e3, name=f"{far:g}-{near:g} km")
+        for far, near in sampler.intervals_km
+    ]
+    if sampler.include_hover:
+        hover = sampler.hover_range_km * 1e3
+        intervals.append(
+            DistanceInterval(far_m=hover, near_m=hover, name=f"hover {sampler.hover_range_km:g} km")
+        )
+    return tuple(intervals)
+
+
+def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
+    elements = scenario.orbit.build()
+    r0, v0 = state_from_elements(elements)
+    prop = scenario.propagation
+    sampler = scenario.sampler
+
+    def fly(r_start: np.ndarray, v_start: np.ndarray, times: np.ndarray):
+        return propagate(
+            r_start, v_start, times, j2=prop.j2, method=prop.method, step_s=prop.step_s
+        )
+
+    if sampler.kind == "rssf":
+        count = sampler.frame_count
+        times = np.zeros(count)
+        r_t, v_t = np.tile(r0, (count, 1)), np.tile(v0, (count, 1))
+        q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
+        intervals = _rssf_intervals(scenario)
+        samples = rssf_samples(
+            count, intervals, np.random.default_rng(sampler.seed), sampler.distance_distribution
+        )
+        R_gcrs_from_body = matrix_from_quaternion(q_gcrs_from_body)
+        center = r_t + R_gcrs_from_body @ center_body
+        offset_body = samples.direction * samples.range_m[:, None]
+        r_obs = center + np.einsum("nij,nj->ni", R_gcrs_from_body, offset_body)
+        # The roll policy's reference follows the target's orbit: the camera is placed
+        # about the target, not flown.
+        reference_r, reference_v = r_t, v_t
+        roll_policy, roll_rad = sampler.camera_roll, samples.roll_rad
+        interval_names = tuple(samples.interval)
+    else:
+        times = _sspt_times(scenario)
+        r_t, v_t = fly(r0, v0, times)
+        q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
+        R_gcrs_from_body = matrix_from_quaternion(q_gcrs_from_body)
+        center = r_t + R_gcrs_from_body @ center_body
+        observer = scenario.observer
+        if observer.mode == "approach":
+            # The spiral spans the whole approach, whatever the frames sample of it.
+            end = sampler.start_s + (sampler.duration_s or natural_span_s(scenario))
+            rho, rho_dot = rm.spiral_approach(
+                np.append(times, end),
+                observer.start_range_km * 1e3,
+                observer.end_range_km * 1e3,
+                _mean_motion_rad_s(elements),
+                revolutions=observer.revolutions,
+            )
+            # About the box centre, so the ranges are exactly the spiral's.
+            r_obs, v_obs = inertial_from_relative_rtn(center, v_t, rho[:-1], rho_dot[:-1])
+        else:
+            r_obs, v_obs = fly(*_observer_initial_state(scenario, r0, v0, elements), times)
+        reference_r, reference_v = r_obs, v_obs
+        roll_policy = observer.camera_roll
+        roll_rad = np.full(len(times), math.radians(observer.roll_deg))
+        interval_names = None
+
+    reference, reference_axis = camera_reference(roll_policy, reference_r, reference_v)
+    q_gcrs_from_cam = pointing_gcrs_from_cam(
+        r_obs, center, reference, roll_rad=roll_rad, reference_axis=reference_axis
+    )
+    q_cam_from_body, t_cam_from_body = cam_from_body(q_gcrs_from_cam, q_gcrs_from_body, r_obs, r_t)
+    instants = epoch_times(scenario.epoch_utc, times)
+    sun = sun_position_gcrs_m(instants)
+    moon = moon_position_gcrs_m(instants)
+    R_cam_from_gcrs = np.swapaxes(matrix_from_quaternion(q_gcrs_from_cam), -1, -2)
+
+    def from_target_cam(position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        offset = position - center
+        distance = np.linalg.norm(offset, axis=1)
+        return np.einsum("nij,nj->ni", R_cam_from_gcrs, offset / distance[:, None]), distance
+
+    sun_dir, sun_dist = from_target_cam(sun)
+    earth_dir, earth_dist = from_target_cam(np.zeros_like(center))
+    moon_dir, moon_dist = from_target_cam(moon)
+    rho_rtn = np.einsum("nij,nj->ni", rtn_from_inertial(r_t, v_t), r_obs - center)
+    visibility = assess_visibility(center, r_obs, sun, scenario.visibility.limits())
+    flags = {name: np.asarray(getattr(visibility, name), dtype=bool) for name in FLAG_FIELDS}
+    if scenario.visibility.on_fail == "keep":
+        flags = {name: np.zeros(len(times), dtype=bool) for name in FLAG_FIELDS}
+    range_m = np.linalg.norm(r_obs - center, axis=1)
+    if interval_names is None:
+        intervals = default_intervals(include_hover=True)
+        interval_names = tuple(interval_name_for_range(r, intervals) for r in range_m)
+    epochs = format_epoch_utc(instants, places=3)
+    return PoseTrack(
+        time_s=times,
+        epoch_utc=tuple(epochs) if isinstance(epochs, list) else (epochs,),
+        q_cam_from_body=q_cam_from_body,
+        t_cam_from_body_m=t_cam_from_body,
+        sun_from_target_cam=sun_dir,
+        sun_distance_m=sun_dist,
+        earth_from_target_cam=earth_dir,
+        earth_distance_m=earth_dist,
+        moon_from_target_cam=moon_dir,
+        moon_distance_m=moon_dist,
+        rho_rtn_m=rho_rtn,
+        range_m=range_m,
+        phase_angle_rad=np.asarray(visibility.phase_angle_rad),
+        sunlit_fraction=np.asarray(visibility.sunlit_fraction),
+        los_clearance_m=np.asarray(visibility.los_clearance_m),
+        sun_boresight_angle_rad=np.asarray(visibility.sun_boresight_angle_rad),
+        interval=interval_names,
+        **flags,
+    )
