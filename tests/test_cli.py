@@ -108,11 +108,13 @@ def test_labels_top_level(labels) -> None:
     assert labels["target"]["name"] == "two_wings_dish-seed3"
     assert len(labels["target"]["keypoints_body_m"]) == 9
     az, el = np.radians(40.0), np.radians(35.0)
-    np.testing.assert_allclose(
-        labels["sun"]["direction_body"],
-        [np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)],
-        atol=1e-12,
-    )
+    for frame in labels["frames"]:
+        np.testing.assert_allclose(
+            frame["sun_direction_body"],
+            [np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)],
+            atol=1e-12,
+        )
+        assert frame["plan"]["visible"] and frame["plan"]["epoch_utc"] is None
 
 
 def test_model_contact_sheet_and_scenario_copy(demo_dir: Path, labels) -> None:

@@ -236,6 +236,8 @@ def test_distance_interval_validation() -> None:
         (5.0, "10-5 km"),
         (4.999, "5-0.5 km"),
         (0.5, "5-0.5 km"),
+        (50.0 * (1 + 1e-10), "50-40 km"),  # rounding in a computed range at the outer edges
+        (0.5 * (1 - 1e-10), "5-0.5 km"),
         (100.0, "hover 100 km"),
         (99.5, "hover 100 km"),
         (100.9, "hover 100 km"),

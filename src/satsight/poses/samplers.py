@@ -49,6 +49,8 @@ HOVER_DISTANCE_KM = 100.0
 """The paper's hover range (camera to target) in km."""
 
 HOVER_RELATIVE_TOLERANCE = 0.01
+# A range this close (relative) to an outer edge of the bands counts as on it.
+EDGE_RELATIVE_TOLERANCE = 1e-9
 """A range within this fraction of a hover distance counts as that hover (1 %)."""
 
 OUTSIDE_INTERVAL_NAME = "outside"
@@ -235,7 +237,8 @@ def interval_name_for_range(
 
     Rules: an approach band holds ``[near_m, far_m)`` and a hover holds its distance within
     :data:`HOVER_RELATIVE_TOLERANCE`; where several would, the first in the given order wins.
-    A far edge that no interval holds that way belongs to its own band, so the union of the
+    An edge that no interval holds that way belongs to its own band, within a relative
+    :data:`EDGE_RELATIVE_TOLERANCE` (rounding in a computed range), so the union of the
     bands is covered with closed ends: with the defaults 40 km is "50-40 km", 50 km is
     "50-40 km" too, 0.5 km is "5-0.5 km", and 99.5 km is "hover 100 km". A range that no
     interval holds gives :data:`OUTSIDE_INTERVAL_NAME` (``"outside"``).
@@ -246,8 +249,11 @@ def interval_name_for_range(
         if interval.contains(r):
             return interval.name
     for interval in checked:
-        if not interval.is_hover and r == interval.far_m:
-            return interval.name
+        if interval.is_hover:
+            continue
+        for edge in (interval.far_m, interval.near_m):
+            if abs(r - edge) <= EDGE_RELATIVE_TOLERANCE * edge:
+                return interval.name
     return OUTSIDE_INTERVAL_NAME
 
 
