@@ -224,6 +224,14 @@ _HAND_PLACED = {
 _ORBITAL_KEYS = ("epoch_utc", "orbit", "attitude", "observer", "visibility", "propagation")
 
 
+def _differs_from_default(model: BaseModel, key: str) -> bool:
+    """Whether a key holds something other than its default (by value, so that a complete
+    copy of a scenario, defaults written out, reads back the same)."""
+    field = type(model).model_fields[key]
+    default = field.get_default(call_default_factory=True)
+    return getattr(model, key) != default
+
+
 class Scenario(_Strict):
     """A complete scenario: camera, target, light, frames and render settings.
 
@@ -273,7 +281,7 @@ class Scenario(_Strict):
                 "'epoch_utc' and 'orbit'"
             )
         if self.sampler is None:
-            unused = [key for key in _ORBITAL_KEYS if key in self.model_fields_set]
+            unused = [key for key in _ORBITAL_KEYS if _differs_from_default(self, key)]
             if unused:
                 raise ValueError(
                     f"{', '.join(unused)} only apply to frames planned from orbits; add a "
@@ -297,7 +305,7 @@ class Scenario(_Strict):
                 raise ValueError("sampler step_deg applies only to observer mode fly_around")
         for section, keys in _HAND_PLACED.items():
             config = getattr(self, section)
-            placed = [] if config is None else sorted(set(keys) & config.model_fields_set)
+            placed = [] if config is None else [k for k in keys if _differs_from_default(config, k)]
             if placed:
                 raise ValueError(
                     f"{section}.{', '.join(placed)}: with frames planned from orbits the "
