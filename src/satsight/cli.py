@@ -123,10 +123,11 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
     scenario = load_scenario(config)
     track = plan_track(scenario, build_target(scenario.target).center_m)
     rendered = frames_to_render(scenario, track)
-    rows = plan_table_rows(track)
-    table = Table(title=f"frame plan of '{scenario.name}'")
+    rows = plan_table_rows(track, with_epoch=False)
+    since = f", time after {scenario.epoch_utc}" if scenario.epoch_utc else ""
+    table = Table(title=f"frame plan of '{scenario.name}'{since}")
     for column in rows[0]:
-        table.add_column(column, justify="right")
+        table.add_column(column, justify="right", no_wrap=True)
     shown = range(len(rows))
     if len(rows) > _PLAN_ROWS_SHOWN:
         half = _PLAN_ROWS_SHOWN // 2

@@ -144,7 +144,7 @@ def test_hover_ahead_reproduces_the_papers_initial_view() -> None:
 
 def test_approach_passes_through_every_interval_geometrically() -> None:
     scenario = scenario_with(
-        observer={"mode": "approach", "revolutions": 2},
+        observer={"mode": "approach", "revolutions": 2, "schedule": "geometric"},
         sampler={"kind": "sspt", "frame_count": 61},
     )
     track = plan_track(scenario, CENTER_M)
@@ -155,6 +155,19 @@ def test_approach_passes_through_every_interval_geometrically() -> None:
     visited = list(dict.fromkeys(track.interval))
     assert visited == [f"{far:g}-{near:g} km" for far, near in APPROACH_INTERVALS_KM]
     assert track.time_s[-1] == pytest.approx(2 * orbital_period_s(7000e3), rel=1e-12)
+
+
+def test_approach_balanced_over_the_intervals_by_default() -> None:
+    scenario = scenario_with(
+        observer={"mode": "approach"},
+        sampler={"kind": "sspt", "frame_count": 60},
+    )
+    track = plan_track(scenario, CENTER_M)
+    names, counts = np.unique(track.interval, return_counts=True)
+    # 60 uniform frames over six equal time spans: 10 each (an edge frame counts for the
+    # interval it is the near edge of).
+    assert len(names) == 6 and set(counts) == {10}
+    assert counts.sum() == 60
 
 
 def test_fly_by_closest_approach_is_the_miss_distance_mid_pass() -> None:

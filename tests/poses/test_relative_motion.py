@@ -306,6 +306,29 @@ def test_spiral_passes_the_end_ranges_and_decays_geometrically() -> None:
     np.testing.assert_allclose(finite, rho_dot[1:-1], rtol=0.0, atol=2e-5)
 
 
+def test_spiral_via_interval_edges_spends_equal_time_in_each_interval() -> None:
+    edges_m = np.array([50e3, 40e3, 30e3, 20e3, 10e3, 5e3, 500.0])
+    span_s = 3.0 * PERIOD_S
+    via = tuple(edges_m[1:-1])
+    # The edges at k / 6 of the span, exactly.
+    t_edges = np.linspace(0.0, span_s, 7)
+    rho, _ = spiral_approach(t_edges, 50e3, 500.0, N_RAD_S, via_ranges_m=via)
+    np.testing.assert_allclose(np.linalg.norm(rho, axis=1), edges_m, rtol=1e-12)
+    # Inside a segment the decay is geometric: the midpoint range is the geometric mean.
+    t_mid = np.array([0.0, 3.5 / 6.0 * span_s, span_s])  # the middle of 20 -> 10 km
+    rho_mid, rho_dot_mid = spiral_approach(t_mid, 50e3, 500.0, N_RAD_S, via_ranges_m=via)
+    assert np.linalg.norm(rho_mid[1]) == pytest.approx(math.sqrt(20e3 * 10e3), rel=1e-12)
+    # The analytic rate against a central difference inside that segment.
+    h_s = 0.5
+    grid = np.array([0.0, t_mid[1] - h_s, t_mid[1] + h_s, span_s])
+    rho_h, _ = spiral_approach(grid, 50e3, 500.0, N_RAD_S, via_ranges_m=via)
+    finite = (rho_h[2] - rho_h[1]) / (2.0 * h_s)
+    np.testing.assert_allclose(finite, rho_dot_mid[1], rtol=0.0, atol=1e-5)
+    for bad in ((60e3,), (30e3, 40e3), (0.0,)):
+        with pytest.raises(SatsightError, match="via_ranges_m"):
+            spiral_approach(t_edges, 50e3, 500.0, N_RAD_S, via_ranges_m=bad)
+
+
 def test_spiral_at_constant_range_is_the_natural_fly_around() -> None:
     t = np.linspace(0.0, 1.5 * PERIOD_S, 91)
     for sign in (1, -1):

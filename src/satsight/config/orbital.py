@@ -142,12 +142,26 @@ class FlyByConfig(_ObserverBase):
 
 class ApproachConfig(_ObserverBase):
     """A guided spiral approach from ``start_range_km`` to ``end_range_km`` (the paper's
-    six intervals by default: 50 km to 0.5 km)."""
+    six intervals by default: 50 km to 0.5 km) in ``revolutions`` turns.
+
+    ``schedule``: ``equal_time_per_interval`` (default) spends the same time in each
+    distance interval crossed, so uniform frames are balanced over the intervals;
+    ``geometric`` lets the range fall by the same factor in equal times.
+    """
 
     mode: Literal["approach"]
     start_range_km: float = Field(default=APPROACH_INTERVALS_KM[0][0], gt=0)
     end_range_km: float = Field(default=APPROACH_INTERVALS_KM[-1][1], gt=0)
     revolutions: float = Field(default=3.0, gt=0, le=1000)
+    schedule: Literal["equal_time_per_interval", "geometric"] = "equal_time_per_interval"
+
+    def via_ranges_m(self) -> tuple[float, ...]:
+        """The interval edges strictly between the start and end ranges, in order, m."""
+        if self.schedule == "geometric":
+            return ()
+        edges = sorted({edge for interval in APPROACH_INTERVALS_KM for edge in interval})
+        inside = [e for e in edges if self.end_range_km < e < self.start_range_km]
+        return tuple(e * 1e3 for e in sorted(inside, reverse=True))
 
     @model_validator(mode="after")
     def _inwards(self) -> ApproachConfig:

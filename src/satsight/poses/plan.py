@@ -14,7 +14,8 @@ Two sources of frames:
     Fly-around, fly-by, hover and RTN initial states are natural motion: the observer's
     initial state is built in the target's RTN frame and both spacecraft are propagated with
     the same dynamics (two-body + J2, RK4 at 1 s by default). The approach is a guided spiral
-    (it needs thrust), placed kinematically in RTN.
+    (it needs thrust), placed kinematically in RTN, by default with equal time in each
+    distance interval it crosses.
   - ``rssf``: all frames at the epoch; the camera is placed about the target on seeded
     spherical Fibonacci lattices (body frame), one per distance interval, with a random roll.
 
@@ -322,6 +323,7 @@ def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
                 observer.end_range_km * 1e3,
                 _mean_motion_rad_s(elements),
                 revolutions=observer.revolutions,
+                via_ranges_m=observer.via_ranges_m(),
             )
             # About the box centre, so the ranges are exactly the spiral's.
             r_obs, v_obs = inertial_from_relative_rtn(center, v_t, rho[:-1], rho_dot[:-1])

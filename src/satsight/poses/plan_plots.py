@@ -115,19 +115,19 @@ def has_rtn(track: PoseTrack) -> bool:
     return bool(np.isfinite(track.rho_rtn_m).all(axis=1).any())
 
 
-def plan_table_rows(track: PoseTrack) -> list[dict]:
+def plan_table_rows(track: PoseTrack, with_epoch: bool = True) -> list[dict]:
     """One dict per frame for a printed table, numbers rounded for display.
 
-    Keys, in order: frame, time_s, epoch_utc (only when the track has epochs), range_km
-    (to the metre), phase_deg (0.1 deg), sunlit (fraction 0..1, 3 decimals), visible
-    ("yes", or the short names of the failing flags: occulted, eclipse, sun, phase) and
-    interval.
+    Keys, in order: frame, time_s (0.1 s), epoch_utc (only when the track has epochs and
+    ``with_epoch``), range_km (to the metre), phase_deg (0.1 deg), sunlit (fraction 0..1,
+    3 decimals), visible ("yes", or the short names of the failing flags: occulted,
+    eclipse, sun, phase) and interval.
     """
-    with_epoch = any(track.epoch_utc)
+    with_epoch = with_epoch and any(track.epoch_utc)
     visible = track.visible
     rows = []
     for i in range(len(track)):
-        row: dict = {"frame": i, "time_s": round(float(track.time_s[i]), 3)}
+        row: dict = {"frame": i, "time_s": round(float(track.time_s[i]), 1)}
         if with_epoch:
             row["epoch_utc"] = track.epoch_utc[i]
         row["range_km"] = round(float(track.range_m[i]) / 1000.0, 3)

@@ -293,6 +293,7 @@ def spiral_approach(
     revolutions: float | None = None,
     phase_rad: float = 0.0,
     cross_track_sign: int = 1,
+    via_ranges_m: tuple[float, ...] = (),
 ) -> tuple[np.ndarray, np.ndarray]:
     """A prescribed spiral approach: relative state (N, 3) m and (N, 3) m/s in target RTN.
 
@@ -311,7 +312,14 @@ def spiral_approach(
     orbit, the fly-around rate) unless revolutions is given, then 2 pi revolutions / T.
     With r1 = r0 and omega_s = n this is exactly the natural CW fly-around.
 
-    rho = r u, rho_dot = r (ln(r1 / r0) / T) u + r omega_s u'(theta), with
+    via_ranges_m: ranges strictly between r0 and r1, in order, that the approach passes at
+    equal time steps: with K segments between r0, the via ranges and r1, segment k takes
+    T / K and the range decays geometrically within it. Giving the edges of the distance
+    intervals (40, 30, 20, 10, 5 km) spends equal time, hence equally many uniform frames,
+    in each interval.
+
+    rho = r u, rho_dot = r (ln(r1 / r0) / T) u + r omega_s u'(theta) (per segment
+    ln(r_b / r_a) K / T in place of ln(r1 / r0) / T), with
     u' = cos(theta) e1 - sin(theta) e2: analytic. r passes r0 at t0 and r1 at t1 exactly
     (the range is ``r`` itself since |u| = 1) and is monotonic in between.
 
@@ -342,10 +350,21 @@ def spiral_approach(
     elapsed_s = times - times[0]
     fraction = elapsed_s / span_s
     fraction[-1] = 1.0  # the end range exactly, whatever the rounding of the division
-    log_ratio = math.log(r1 / r0)
-    rng = r0 * np.exp(log_ratio * fraction)
+    edges = np.array([r0, *(float(v) for v in via_ranges_m), r1])
+    steps = np.diff(np.log(edges)) if np.all(edges > 0) else np.array([np.nan])
+    monotonic = np.all(steps < 0) or np.all(steps > 0) or not via_ranges_m
+    if not (np.all(np.isfinite(steps)) and monotonic):
+        raise SatsightError(
+            "via_ranges_m must be positive ranges strictly between start_range_m and "
+            f"end_range_m, in order; got {list(via_ranges_m)} between {r0} and {r1} m"
+        )
+    segments = edges.size - 1
+    position = fraction * segments
+    segment = np.minimum(np.floor(position).astype(int), segments - 1)
+    log_ratio = steps[segment]
+    rng = edges[segment] * np.exp(log_ratio * (position - segment))
     rng[0], rng[-1] = r0, r1
-    range_rate_m_s = rng * (log_ratio / span_s)
+    range_rate_m_s = rng * log_ratio * (segments / span_s)
     theta = phase_rad + omega_rad_s * elapsed_s
     e1, e2 = _fly_around_axes(sign)
     s, c = np.sin(theta)[:, None], np.cos(theta)[:, None]
