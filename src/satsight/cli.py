@@ -1,4 +1,4 @@
-"""Command line: ``satsight demo | generate | ablate | bench | satellite``.
+"""Command line: ``satsight demo | generate | plan | ablate | bench | satellite``.
 
 A thin shell over ``satsight.pipeline``: user errors print a message and exit with status 2,
 never a traceback.
