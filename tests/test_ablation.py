@@ -133,3 +133,27 @@ def test_ablate_refuses_reference_below_variant_samples(tmp_path: Path):
               "--reference-spp", "4"])  # fmt: skip
     assert stop.value.code == 2
     assert not out.exists()
+
+
+def test_orbital_scenario_ablates_its_lit_frames_only():
+    """Frames in the umbra that see only the Earth's night side are black: left out."""
+    from satsight.cli import example_scenario_path
+    from satsight.config.scenario import load_scenario
+    from satsight.pipeline import build_target
+    from satsight.poses.plan import plan_track
+
+    scenario = load_scenario(example_scenario_path().parent / "fly_by.yaml")
+    track = plan_track(scenario, build_target(scenario.target).center_m)
+    dark = track.sunlit_fraction[:8] == 0.0
+    assert dark.any()  # the example's pass crosses the umbra
+    planned: list[int] = []
+    result = run_ablation(
+        scenario,
+        samples_per_pixel=1,
+        reference_samples_per_pixel=2,
+        width_px=128,  # the 4-5 m target spans 5-6 pixels at the pass's 5 km
+        max_frames=8,
+        on_plan=planned.append,
+    )
+    assert planned[0] == len(result.images["reference"]) < 8
+    assert all(row["frames"] == planned[0] for row in result.rows)

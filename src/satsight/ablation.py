@@ -135,6 +135,18 @@ def run_ablation(
     if max_frames is not None:
         indices = indices[:max_frames]
     lights = [frame_light(reference_scenario, track, i)[0] for i in indices]
+    # A frame without light (in the umbra, seeing only the Earth's night side) renders
+    # black and has nothing to compare.
+    lit = [
+        k
+        for k, light in enumerate(lights)
+        if light.sun_irradiance_w_m2 > 0 or np.any(light.sh_radiance_w_m2_sr != 0)
+    ]
+    if not lit:
+        raise SatsightError(
+            "no frame of the scenario is lit (all in the Earth's shadow); nothing to ablate"
+        )
+    indices, lights = indices[lit], [lights[k] for k in lit]
     if on_plan is not None:
         on_plan(len(indices))
     base = scenario.render.settings().with_(

@@ -121,7 +121,8 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
     from satsight.poses.plan_plots import plan_table_rows, write_plan_csv, write_plan_plots
 
     scenario = load_scenario(config)
-    track = plan_track(scenario, build_target(scenario.target).center_m)
+    mesh = build_target(scenario.target)
+    track = plan_track(scenario, mesh.center_m, mesh.bounding_radius_m)
     rendered = frames_to_render(scenario, track)
     rows = plan_table_rows(track, with_epoch=False)
     since = f", time after {scenario.epoch_utc}" if scenario.epoch_utc else ""

@@ -106,7 +106,7 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
 
 def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:
     """The scenario's frame plan and the indices of the frames to render."""
-    track = plan_track(scenario, mesh.center_m)
+    track = plan_track(scenario, mesh.center_m, mesh.bounding_radius_m)
     indices = frames_to_render(scenario, track)
     if indices.size == 0:
         raise SatsightError(

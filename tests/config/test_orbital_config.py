@@ -172,3 +172,32 @@ def test_a_complete_copy_reads_back_the_same(name: str) -> None:
     scenario = load_scenario(example_scenario_path().parent / f"{name}.yaml")
     copy_text = yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
     assert parse_scenario(yaml.safe_load(copy_text)) == scenario
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        (
+            {
+                "observer": {
+                    "mode": "fly_by",
+                    "miss_distance_km": 1e-6,
+                    "start_along_track_km": 5.0,
+                }
+            },
+            "beyond the 31622400 s (366 days) allowed",
+        ),
+        ({"sampler": {"kind": "sspt", "step_s": 0.001}}, "more than 1000000"),
+        ({"sampler": {"kind": "sspt", "frame_count": 2, "start_s": 1e12}}, "sampler.sspt.start_s"),
+        (
+            {"observer": {"mode": "fly_by", "miss_distance_km": -7000, "start_along_track_km": -1}},
+            "observer.fly_by.miss_distance_km",
+        ),
+        (
+            {"observer": {"mode": "relative_rtn", "position_rtn_km": [0, 2000, 0]}},
+            "within 1000 km of the target",
+        ),
+    ],
+)
+def test_plans_too_long_large_or_far_are_refused(changes: dict, message: str) -> None:
+    assert message in _error(_with(**changes))

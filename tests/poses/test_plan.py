@@ -296,3 +296,28 @@ def test_views_in_the_body_frame_keep_their_poses() -> None:
         assert track.range_m[i] == pytest.approx(frame.distance_km * 1e3, rel=1e-12)
     assert isinstance(scenario.frames[0].build(), View)
     assert track.visible.all() and np.all(np.isnan(track.rho_rtn_m))
+
+
+def test_frame_count_over_a_closed_orbit_leaves_out_the_repeated_view() -> None:
+    track = plan_track(scenario_with(sampler={"kind": "sspt", "frame_count": 12}), CENTER_M)
+    period = orbital_period_s(7000e3)
+    np.testing.assert_allclose(track.time_s, np.arange(12) * period / 12, atol=1e-9)
+    with_duration = scenario_with(sampler={"kind": "sspt", "frame_count": 12, "duration_s": period})
+    assert plan_track(with_duration, CENTER_M).time_s[-1] == pytest.approx(period, abs=1e-9)
+
+
+def test_a_camera_inside_the_earth_or_the_target_is_refused() -> None:
+    from satsight.errors import SatsightError
+
+    below = scenario_with(
+        observer={"mode": "relative_rtn", "position_rtn_km": [-900.0, 0.0, 0.0]},
+        sampler={"kind": "sspt", "frame_count": 3},
+    )
+    with pytest.raises(SatsightError, match="inside the Earth"):
+        plan_track(below, CENTER_M)
+    same_orbit = scenario_with(
+        observer={"mode": "elements", "orbit": BASE["orbit"]},
+        sampler={"kind": "sspt", "frame_count": 3},
+    )
+    with pytest.raises(SatsightError, match="inside its bounding sphere"):
+        plan_track(same_orbit, CENTER_M, target_radius_m=5.0)

@@ -13,13 +13,24 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M, OrbitalElements
+from satsight.ephemeris.orbits import (
+    EARTH_EQUATORIAL_RADIUS_M,
+    MU_EARTH_M3_S2,
+    OrbitalElements,
+    orbital_period_s,
+)
 from satsight.ephemeris.visibility import DEFAULT_ATMOSPHERE_MARGIN_M, VisibilityLimits
 from satsight.poses.attitude import ROLL_POLICIES
 from satsight.poses.samplers import APPROACH_INTERVALS_KM, HOVER_DISTANCE_KM
 
 # Lowest perigee accepted: below ~100 km an orbit decays within hours.
 MIN_PERIGEE_ALTITUDE_KM = 100.0
+# Largest distance between observer and target a mode may set up, km (the camera models a
+# close-range inspector; 1000 km is ten times the paper's hover distance).
+MAX_RELATIVE_KM = 1000.0
+# Longest SSPT span and most frames a plan may hold.
+MAX_SPAN_S = 366 * 86400.0
+MAX_FRAMES = 1_000_000
 
 
 class _Strict(BaseModel):
@@ -117,7 +128,7 @@ class FlyAroundConfig(_ObserverBase):
     revolution per target orbit."""
 
     mode: Literal["fly_around"]
-    radius_km: float = Field(gt=0, le=1000)
+    radius_km: float = Field(gt=0, le=MAX_RELATIVE_KM)
     phase_deg: float = 0.0
 
 
@@ -125,8 +136,10 @@ class FlyByConfig(_ObserverBase):
     """A co-elliptic pass: the observer drifts along-track at a constant radial offset."""
 
     mode: Literal["fly_by"]
-    miss_distance_km: float = Field(description="radial offset; > 0 above the target")
-    start_along_track_km: float
+    miss_distance_km: float = Field(
+        ge=-MAX_RELATIVE_KM, le=MAX_RELATIVE_KM, description="radial offset; > 0 above"
+    )
+    start_along_track_km: float = Field(ge=-MAX_RELATIVE_KM, le=MAX_RELATIVE_KM)
 
     @model_validator(mode="after")
     def _passes(self) -> FlyByConfig:
@@ -150,8 +163,8 @@ class ApproachConfig(_ObserverBase):
     """
 
     mode: Literal["approach"]
-    start_range_km: float = Field(default=APPROACH_INTERVALS_KM[0][0], gt=0)
-    end_range_km: float = Field(default=APPROACH_INTERVALS_KM[-1][1], gt=0)
+    start_range_km: float = Field(default=APPROACH_INTERVALS_KM[0][0], gt=0, le=MAX_RELATIVE_KM)
+    end_range_km: float = Field(default=APPROACH_INTERVALS_KM[-1][1], gt=0, le=MAX_RELATIVE_KM)
     revolutions: float = Field(default=3.0, gt=0, le=1000)
     schedule: Literal["equal_time_per_interval", "geometric"] = "equal_time_per_interval"
 
@@ -175,7 +188,7 @@ class HoverConfig(_ObserverBase):
     boresight along -T, image +x along N) or behind it."""
 
     mode: Literal["hover"]
-    range_km: float = Field(default=HOVER_DISTANCE_KM, gt=0, le=1000)
+    range_km: float = Field(default=HOVER_DISTANCE_KM, gt=0, le=MAX_RELATIVE_KM)
     side: Literal["ahead", "behind"] = "ahead"
 
 
@@ -199,6 +212,10 @@ class RelativeRtnConfig(_ObserverBase):
             raise ValueError(
                 "position_rtn_km must not be [0, 0, 0]: the observer would sit inside the target"
             )
+        if math.hypot(*self.position_rtn_km) > MAX_RELATIVE_KM:
+            raise ValueError(
+                f"position_rtn_km must lie within {MAX_RELATIVE_KM:g} km of the target"
+            )
         return self
 
 
@@ -219,15 +236,18 @@ class SsptConfig(_Strict):
 
     The span starts at ``start_s`` after the epoch and lasts ``duration_s`` (default: one
     target orbit for fly-around and hover, the whole pass for a fly-by, ``revolutions``
-    orbits for an approach). Frames are either ``frame_count`` uniform samples of the span
-    (both ends included), one every ``step_s`` seconds, or, for a fly-around, one every
-    ``step_deg`` degrees of its revolution.
+    orbits for an approach). Natural motion (every mode but the approach) starts at the
+    epoch, so ``start_s`` only delays the first frame; the approach starts at ``start_s``.
+    Frames are either ``frame_count`` uniform samples of the span (both ends included,
+    except over a fly-around's or hover's default span of one orbit, whose end would repeat
+    its start), one every ``step_s`` seconds, or, for a fly-around, one every ``step_deg``
+    degrees of its revolution.
     """
 
     kind: Literal["sspt"]
-    start_s: float = Field(default=0.0, ge=0)
-    duration_s: float | None = Field(default=None, gt=0, le=366 * 86400)
-    frame_count: int | None = Field(default=None, ge=1, le=1_000_000)
+    start_s: float = Field(default=0.0, ge=0, le=MAX_SPAN_S)
+    duration_s: float | None = Field(default=None, gt=0, le=MAX_SPAN_S)
+    frame_count: int | None = Field(default=None, ge=1, le=MAX_FRAMES)
     step_s: float | None = Field(default=None, gt=0)
     step_deg: float | None = Field(default=None, gt=0, le=360)
 
@@ -251,16 +271,17 @@ class RssfConfig(_Strict):
     seed: int = Field(default=5, ge=0)
     intervals_km: tuple[tuple[float, float], ...] = APPROACH_INTERVALS_KM
     include_hover: bool = True
-    hover_range_km: float = Field(default=HOVER_DISTANCE_KM, gt=0, le=1000)
+    hover_range_km: float = Field(default=HOVER_DISTANCE_KM, gt=0, le=MAX_RELATIVE_KM)
     distance_distribution: Literal["uniform", "log_uniform"] = "uniform"
     camera_roll: Literal[ROLL_POLICIES] = "orbit_normal"
 
     @model_validator(mode="after")
     def _intervals(self) -> RssfConfig:
         for far, near in self.intervals_km:
-            if not 0 < near < far:
+            if not 0 < near < far <= MAX_RELATIVE_KM:
                 raise ValueError(
-                    f"each interval is [far_km, near_km] with far > near > 0; got {[far, near]}"
+                    f"each interval is [far_km, near_km] with {MAX_RELATIVE_KM:g} >= far > near "
+                    f"> 0; got {[far, near]}"
                 )
         if not self.intervals_km and not self.include_hover:
             raise ValueError("no distance interval: give intervals_km or include_hover: true")
@@ -307,3 +328,44 @@ class PropagationConfig(_Strict):
     method: Literal["rk4", "dop853"] = "rk4"
     step_s: float = Field(default=1.0, gt=0, le=600)
     j2: bool = True
+
+
+def natural_span_s(orbit: OrbitConfig, observer: BaseModel) -> float:
+    """The default length of an SSPT span for an observer mode, s: one target orbit, a
+    fly-by's whole pass (4 y0 / (3 n x0)), or an approach's ``revolutions`` orbits."""
+    a_m = orbit.semi_major_axis_km * 1e3
+    period = orbital_period_s(a_m)
+    if observer.mode == "fly_by":
+        n = math.sqrt(MU_EARTH_M3_S2 / a_m**3)
+        drift_m_s = 1.5 * n * abs(observer.miss_distance_km * 1e3)
+        return 2.0 * abs(observer.start_along_track_km * 1e3) / drift_m_s
+    if observer.mode == "approach":
+        return observer.revolutions * period
+    return period
+
+
+def check_sspt_size(orbit: OrbitConfig, observer: BaseModel, sampler: SsptConfig) -> None:
+    """Refuse SSPT plans longer than MAX_SPAN_S or with more than MAX_FRAMES frames."""
+    span = sampler.duration_s or natural_span_s(orbit, observer)
+    if sampler.start_s + span > MAX_SPAN_S:
+        raise ValueError(
+            f"the SSPT span ends {sampler.start_s + span:.4g} s after the epoch, beyond the "
+            f"{MAX_SPAN_S:.0f} s (366 days) allowed; set sampler.duration_s"
+            + (
+                " (a fly-by's default span is its whole pass, which a small miss distance "
+                "makes long)"
+                if observer.mode == "fly_by" and sampler.duration_s is None
+                else ""
+            )
+        )
+    if sampler.step_s is not None:
+        count = span / sampler.step_s + 1
+    elif sampler.step_deg is not None:
+        count = 360.0 * span / orbital_period_s(orbit.semi_major_axis_km * 1e3) / sampler.step_deg
+    else:
+        count = sampler.frame_count
+    if count > MAX_FRAMES:
+        raise ValueError(
+            f"the sampler would plan {count:.4g} frames, more than {MAX_FRAMES}; use a larger "
+            "step or a shorter duration_s"
+        )

@@ -30,6 +30,7 @@ from satsight.config.orbital import (
     PropagationConfig,
     SamplerConfig,
     VisibilityConfig,
+    check_sspt_size,
 )
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
@@ -303,6 +304,8 @@ class Scenario(_Strict):
         if self.sampler.kind == "sspt" and self.sampler.step_deg is not None:
             if self.observer.mode != "fly_around":
                 raise ValueError("sampler step_deg applies only to observer mode fly_around")
+        if self.sampler.kind == "sspt":
+            check_sspt_size(self.orbit, self.observer, self.sampler)
         for section, keys in _HAND_PLACED.items():
             config = getattr(self, section)
             placed = [] if config is None else [k for k in keys if _differs_from_default(config, k)]

@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from satsight.config.orbital import natural_span_s as config_natural_span_s
 from satsight.config.scenario import Scenario
 from satsight.ephemeris.orbits import (
     EARTH_EQUATORIAL_RADIUS_M,
@@ -74,16 +75,30 @@ def _angle_rad(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
-def plan_track(scenario: Scenario, target_center_body_m: np.ndarray) -> PoseTrack:
+def plan_track(
+    scenario: Scenario, target_center_body_m: np.ndarray, target_radius_m: float = 0.0
+) -> PoseTrack:
     """Every frame of ``scenario`` (before the visibility policy drops any).
 
     target_center_body_m: (3,) the target's bounding-box centre in the body frame, m; the
-    camera looks at it.
+    camera looks at it. target_radius_m: the radius of the target's bounding sphere about
+    that centre, m; a frame that puts the camera inside it, or inside the Earth, is an
+    error.
     """
     center = np.asarray(target_center_body_m, dtype=np.float64).reshape(3)
     if scenario.sampler is None:
-        return _views_track(scenario, center)
-    return _orbital_track(scenario, center)
+        track = _views_track(scenario, center)
+    else:
+        track = _orbital_track(scenario, center)
+    inside = np.flatnonzero(track.range_m <= target_radius_m)
+    if inside.size:
+        i = int(inside[0])
+        raise SatsightError(
+            f"frame {i} (t = {track.time_s[i]:.1f} s) puts the camera {track.range_m[i]:.3g} m "
+            f"from the target's centre, inside its bounding sphere ({target_radius_m:.3g} m); "
+            "move the observer further away"
+        )
+    return track
 
 
 def frames_to_render(scenario: Scenario, track: PoseTrack) -> np.ndarray:
@@ -152,16 +167,7 @@ def _mean_motion_rad_s(elements: OrbitalElements) -> float:
 
 def natural_span_s(scenario: Scenario) -> float:
     """The default length of an SSPT span for the scenario's observer mode, s."""
-    elements = scenario.orbit.build()
-    period = orbital_period_s(elements.semi_major_axis_m)
-    observer = scenario.observer
-    if observer.mode == "fly_by":
-        n = _mean_motion_rad_s(elements)
-        drift_m_s = 1.5 * n * abs(observer.miss_distance_km * 1e3)
-        return 2.0 * abs(observer.start_along_track_km * 1e3) / drift_m_s
-    if observer.mode == "approach":
-        return observer.revolutions * period
-    return period
+    return config_natural_span_s(scenario.orbit, scenario.observer)
 
 
 def _sspt_times(scenario: Scenario) -> np.ndarray:
@@ -173,6 +179,11 @@ def _sspt_times(scenario: Scenario) -> np.ndarray:
         # The fly-around turns 360 degrees per target orbit from the start of the span.
         stop_deg = 360.0 * duration / period
         return sspt_angle_times_s(period, 0.0, stop_deg, sampler.step_deg, start_s=start)
+    # Over one whole orbit a fly-around or a hover comes back to its start: leave the
+    # repeated view out.
+    closed = scenario.observer.mode in ("fly_around", "hover") and sampler.duration_s is None
+    if sampler.frame_count is not None and sampler.frame_count > 1 and closed:
+        return sspt_times_s(start, end, frame_count=sampler.frame_count, include_end=False)
     return sspt_times_s(start, end, frame_count=sampler.frame_count, step_s=sampler.step_s)
 
 
@@ -358,6 +369,14 @@ def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
     if scenario.visibility.on_fail == "keep":
         flags = {name: np.zeros(len(times), dtype=bool) for name in FLAG_FIELDS}
     range_m = np.linalg.norm(r_obs - center, axis=1)
+    buried = np.flatnonzero(np.linalg.norm(r_obs, axis=1) < EARTH_EQUATORIAL_RADIUS_M)
+    if buried.size:
+        i = int(buried[0])
+        raise SatsightError(
+            f"frame {i} (t = {times[i]:.1f} s) puts the camera inside the Earth "
+            f"({np.linalg.norm(r_obs[i]) / 1e3:.1f} km from its centre); check the observer's "
+            "mode and distances"
+        )
     if interval_names is None:
         intervals = default_intervals(include_hover=True)
         interval_names = tuple(interval_name_for_range(r, intervals) for r in range_m)
