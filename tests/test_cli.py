@@ -7,15 +7,13 @@ reads what it wrote.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from cli_runner import run_satsight
 from satsight.camera.pinhole import PinholeCamera
 from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
@@ -63,17 +61,7 @@ def labels(demo_dir: Path) -> dict:
     return json.loads((demo_dir / "labels.json").read_text(encoding="utf-8"))
 
 
-def _satsight(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "COLUMNS": "200"}  # keep rich from wrapping messages
-    return subprocess.run(
-        [sys.executable, "-m", "satsight", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=env,
-        check=False,
-    )
+_satsight = run_satsight
 
 
 # --- the demo dataset ---------------------------------------------------------------------

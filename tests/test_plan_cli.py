@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from cli_runner import run_satsight
 from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
 from satsight.pipeline import build_target
@@ -22,17 +20,7 @@ EXAMPLES = example_scenario_path().parent
 SMALL_CAMERA = {"preset": "wide_field", "width_px": 96, "height_px": 96}
 
 
-def _satsight(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "COLUMNS": "200"}
-    return subprocess.run(
-        [sys.executable, "-m", "satsight", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=env,
-        check=False,
-    )
+_satsight = run_satsight
 
 
 def _write(tmp_path: Path, name: str, data: dict) -> Path:
