@@ -26,6 +26,7 @@ follows the observer's ``camera_roll`` policy (see ``satsight.poses.attitude``).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -289,67 +290,109 @@ def _rssf_intervals(scenario: Scenario) -> tuple[DistanceInterval, ...]:
     return tuple(intervals)
 
 
-def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
+@dataclass(frozen=True)
+class _Flight:
+    """Where the target and the camera are at each frame time (GCRS, m, m/s)."""
+
+    times_s: np.ndarray
+    r_target_m: np.ndarray
+    v_target_m_s: np.ndarray
+    q_gcrs_from_body: np.ndarray
+    center_m: np.ndarray  # the target's box centre
+    r_camera_m: np.ndarray
+    reference_r_m: np.ndarray  # the state the roll policy's reference comes from
+    reference_v_m_s: np.ndarray
+    roll_policy: str
+    roll_rad: np.ndarray
+    interval_names: tuple[str, ...] | None  # None: named from the ranges
+
+
+def _rssf_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
+    sampler = scenario.sampler
+    r0, v0 = state_from_elements(scenario.orbit.build())
+    count = sampler.frame_count
+    times = np.zeros(count)
+    r_t, v_t = np.tile(r0, (count, 1)), np.tile(v0, (count, 1))
+    q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
+    samples = rssf_samples(
+        count,
+        _rssf_intervals(scenario),
+        np.random.default_rng(sampler.seed),
+        sampler.distance_distribution,
+    )
+    R_gcrs_from_body = matrix_from_quaternion(q_gcrs_from_body)
+    center = r_t + R_gcrs_from_body @ center_body
+    offset_body = samples.direction * samples.range_m[:, None]
+    r_camera = center + np.einsum("nij,nj->ni", R_gcrs_from_body, offset_body)
+    # The roll policy's reference follows the target's orbit: the camera is placed about
+    # the target, not flown.
+    return _Flight(
+        times, r_t, v_t, q_gcrs_from_body, center, r_camera, r_t, v_t,
+        sampler.camera_roll, samples.roll_rad, tuple(samples.interval),
+    )  # fmt: skip
+
+
+def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
     elements = scenario.orbit.build()
     r0, v0 = state_from_elements(elements)
     prop = scenario.propagation
-    sampler = scenario.sampler
+    sampler, observer = scenario.sampler, scenario.observer
 
     def fly(r_start: np.ndarray, v_start: np.ndarray, times: np.ndarray):
         return propagate(
             r_start, v_start, times, j2=prop.j2, method=prop.method, step_s=prop.step_s
         )
 
-    if sampler.kind == "rssf":
-        count = sampler.frame_count
-        times = np.zeros(count)
-        r_t, v_t = np.tile(r0, (count, 1)), np.tile(v0, (count, 1))
-        q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
-        intervals = _rssf_intervals(scenario)
-        samples = rssf_samples(
-            count, intervals, np.random.default_rng(sampler.seed), sampler.distance_distribution
+    times = _sspt_times(scenario)
+    r_t, v_t = fly(r0, v0, times)
+    q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
+    center = r_t + matrix_from_quaternion(q_gcrs_from_body) @ center_body
+    if observer.mode == "approach":
+        # The spiral spans the whole approach, whatever the frames sample of it.
+        end = sampler.start_s + (sampler.duration_s or natural_span_s(scenario))
+        rho, rho_dot = rm.spiral_approach(
+            np.append(times, end),
+            observer.start_range_km * 1e3,
+            observer.end_range_km * 1e3,
+            _mean_motion_rad_s(elements),
+            revolutions=observer.revolutions,
+            via_ranges_m=observer.via_ranges_m(),
         )
-        R_gcrs_from_body = matrix_from_quaternion(q_gcrs_from_body)
-        center = r_t + R_gcrs_from_body @ center_body
-        offset_body = samples.direction * samples.range_m[:, None]
-        r_obs = center + np.einsum("nij,nj->ni", R_gcrs_from_body, offset_body)
-        # The roll policy's reference follows the target's orbit: the camera is placed
-        # about the target, not flown.
-        reference_r, reference_v = r_t, v_t
-        roll_policy, roll_rad = sampler.camera_roll, samples.roll_rad
-        interval_names = tuple(samples.interval)
+        # About the box centre, so the ranges are exactly the spiral's.
+        r_obs, v_obs = inertial_from_relative_rtn(center, v_t, rho[:-1], rho_dot[:-1])
     else:
-        times = _sspt_times(scenario)
-        r_t, v_t = fly(r0, v0, times)
-        q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
-        R_gcrs_from_body = matrix_from_quaternion(q_gcrs_from_body)
-        center = r_t + R_gcrs_from_body @ center_body
-        observer = scenario.observer
-        if observer.mode == "approach":
-            # The spiral spans the whole approach, whatever the frames sample of it.
-            end = sampler.start_s + (sampler.duration_s or natural_span_s(scenario))
-            rho, rho_dot = rm.spiral_approach(
-                np.append(times, end),
-                observer.start_range_km * 1e3,
-                observer.end_range_km * 1e3,
-                _mean_motion_rad_s(elements),
-                revolutions=observer.revolutions,
-                via_ranges_m=observer.via_ranges_m(),
-            )
-            # About the box centre, so the ranges are exactly the spiral's.
-            r_obs, v_obs = inertial_from_relative_rtn(center, v_t, rho[:-1], rho_dot[:-1])
-        else:
-            r_obs, v_obs = fly(*_observer_initial_state(scenario, r0, v0, elements), times)
-        reference_r, reference_v = r_obs, v_obs
-        roll_policy = observer.camera_roll
-        roll_rad = np.full(len(times), math.radians(observer.roll_deg))
-        interval_names = None
+        r_obs, v_obs = fly(*_observer_initial_state(scenario, r0, v0, elements), times)
+    roll_rad = np.full(len(times), math.radians(observer.roll_deg))
+    return _Flight(
+        times, r_t, v_t, q_gcrs_from_body, center, r_obs, r_obs, v_obs,
+        observer.camera_roll, roll_rad, None,
+    )  # fmt: skip
 
-    reference, reference_axis = camera_reference(roll_policy, reference_r, reference_v)
-    q_gcrs_from_cam = pointing_gcrs_from_cam(
-        r_obs, center, reference, roll_rad=roll_rad, reference_axis=reference_axis
+
+def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
+    if scenario.sampler.kind == "rssf":
+        flight = _rssf_flight(scenario, center_body)
+    else:
+        flight = _sspt_flight(scenario, center_body)
+    times, r_t, v_t = flight.times_s, flight.r_target_m, flight.v_target_m_s
+    center, r_obs = flight.center_m, flight.r_camera_m
+    buried = np.flatnonzero(np.linalg.norm(r_obs, axis=1) < EARTH_EQUATORIAL_RADIUS_M)
+    if buried.size:
+        i = int(buried[0])
+        raise SatsightError(
+            f"frame {i} (t = {times[i]:.1f} s) puts the camera inside the Earth "
+            f"({np.linalg.norm(r_obs[i]) / 1e3:.1f} km from its centre); check the observer's "
+            "mode and distances"
+        )
+    reference, reference_axis = camera_reference(
+        flight.roll_policy, flight.reference_r_m, flight.reference_v_m_s
     )
-    q_cam_from_body, t_cam_from_body = cam_from_body(q_gcrs_from_cam, q_gcrs_from_body, r_obs, r_t)
+    q_gcrs_from_cam = pointing_gcrs_from_cam(
+        r_obs, center, reference, roll_rad=flight.roll_rad, reference_axis=reference_axis
+    )
+    q_cam_from_body, t_cam_from_body = cam_from_body(
+        q_gcrs_from_cam, flight.q_gcrs_from_body, r_obs, r_t
+    )
     instants = epoch_times(scenario.epoch_utc, times)
     sun = sun_position_gcrs_m(instants)
     moon = moon_position_gcrs_m(instants)
@@ -369,14 +412,7 @@ def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
     if scenario.visibility.on_fail == "keep":
         flags = {name: np.zeros(len(times), dtype=bool) for name in FLAG_FIELDS}
     range_m = np.linalg.norm(r_obs - center, axis=1)
-    buried = np.flatnonzero(np.linalg.norm(r_obs, axis=1) < EARTH_EQUATORIAL_RADIUS_M)
-    if buried.size:
-        i = int(buried[0])
-        raise SatsightError(
-            f"frame {i} (t = {times[i]:.1f} s) puts the camera inside the Earth "
-            f"({np.linalg.norm(r_obs[i]) / 1e3:.1f} km from its centre); check the observer's "
-            "mode and distances"
-        )
+    interval_names = flight.interval_names
     if interval_names is None:
         intervals = default_intervals(include_hover=True)
         interval_names = tuple(interval_name_for_range(r, intervals) for r in range_m)
