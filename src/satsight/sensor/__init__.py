@@ -1,0 +1,1 @@
+"""The sensor chain: optics (MTF, PSF, focal-plane irradiance) and the detector."""
