@@ -174,7 +174,8 @@ def _planck_band_w_m2(lo_m: float, hi_m: float, temperature_k: float) -> float:
     return float(np.sum(half * weights[None, :] * integrand))
 
 
-def _check_band_nm(band_nm: tuple[float, float]) -> tuple[float, float]:
+def check_band_nm(band_nm: tuple[float, float]) -> tuple[float, float]:
+    """A spectral band (lo, hi) in nm as two floats with 0 < lo < hi, or SatsightError."""
     try:
         lo, hi = (float(v) for v in band_nm)
     except (TypeError, ValueError) as exc:
@@ -241,7 +242,7 @@ def band_irradiance_w_m2(
     distance_au: Sun-observer distance in astronomical units (1 AU = 149 597 870 700 m,
     IAU 2012 Resolution B2).
     """
-    lo, hi = _check_band_nm(band_nm)
+    lo, hi = check_band_nm(band_nm)
     d = _check_distance_au(distance_au)
     e_1au = _band_irradiance_1au_w_m2(lo, hi, spectrum, temperature_k, total_w_m2)
     return e_1au / d**2

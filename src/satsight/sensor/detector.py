@@ -40,6 +40,7 @@ import numpy as np
 import scipy.constants as const
 
 from satsight.errors import SatsightError
+from satsight.lighting.solar_spectrum import check_band_nm
 
 #: Planck constant h (J s), CODATA 2018 exact value (scipy.constants).
 PLANCK_J_S: float = const.h
@@ -223,21 +224,6 @@ class DetectorParameters:
 # --------------------------------------------------------------------------------------
 # Checks
 # --------------------------------------------------------------------------------------
-def _check_band_nm(band_nm: tuple[float, float]) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in band_nm)
-    except (TypeError, ValueError) as exc:
-        raise SatsightError(
-            f"band_nm must be two wavelengths (lo, hi) in nm, got {band_nm!r}"
-        ) from exc
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
-        raise SatsightError(
-            f"band_nm must satisfy 0 < lo < hi (nm), got ({lo:g}, {hi:g}); "
-            "give the band's short-wavelength edge first"
-        )
-    return lo, hi
-
-
 def _check_exposure_s(exposure_time_s: float) -> float:
     if not (_finite(exposure_time_s) and float(exposure_time_s) >= 0.0):
         raise SatsightError(
@@ -296,7 +282,7 @@ def mean_photon_energy_j(
     int E_lambda d lambda (e.g. from the solar spectrum times the optics' transmission),
     which must lie inside the band. h and c are the exact SI (CODATA 2018) values.
     """
-    lo_nm, hi_nm = _check_band_nm(band_nm)
+    lo_nm, hi_nm = check_band_nm(band_nm)
     if effective_wavelength_m is None:
         wavelength_m = 0.5 * (lo_nm + hi_nm) * 1e-9
     else:
