@@ -29,6 +29,7 @@ from satsight.frames.quaternion import (
 from satsight.frames.rigid import RigidTransform, look_at_cam_from_body
 from satsight.render.buffers import RadianceImage
 from satsight.scene.mesh import TargetMesh
+from satsight.sensor.chain import DnImage
 
 ATOL = 1e-12
 ATOL_PX = 1e-9
@@ -192,7 +193,19 @@ def test_label_images_on_disk(tmp_path: Path) -> None:
         part_id=part_id,
         normals_cam=np.zeros((2, 3, 3), dtype=np.float32),
     )
-    files = write_frame(tmp_path, 0, image)["files"]
+    dn_image = DnImage(
+        dn=np.array([[1000, 2000, 3000], [1000, 61000, 65535]], dtype=np.uint16),
+        exposure_time_s=0.001,
+        saturated_pixel_count=2,
+        star_count=0,
+        bias_dn=1000.0,
+        full_well_dn=61000.0,
+    )
+    files = write_frame(tmp_path, 0, image, dn_image)["files"]
+    # Raw DN: 16-bit greyscale, exactly the detector's values.
+    with Image.open(tmp_path / files["dn_png16"]) as png16:
+        assert png16.mode == "I;16"
+        np.testing.assert_array_equal(np.asarray(png16), dn_image.dn)
     with Image.open(tmp_path / files["object_mask_png"]) as png8:
         object_mask = np.asarray(png8)
     # Object mask: 8-bit, 255 on the target, 0 elsewhere.

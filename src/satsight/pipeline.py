@@ -20,21 +20,28 @@ import yaml
 from satsight import __version__
 from satsight.config.scenario import Scenario, TargetConfig
 from satsight.dataset.labels import frame_labels
-from satsight.dataset.preview import crop_box_xyxy_px, thumbnail, write_contact_sheet
+from satsight.dataset.preview import (
+    DN_PREVIEW_STRETCH,
+    crop_box_xyxy_px,
+    thumbnail,
+    write_contact_sheet,
+)
 from satsight.dataset.staging import check_output_folder, staged_folder
 from satsight.dataset.writer import LABELS_FORMAT, write_frame, write_labels
+from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.sun_moon import AU_M
 from satsight.errors import SatsightError
-from satsight.lighting.bodies import environment_light_field
+from satsight.lighting.bodies import MOON_MEAN_RADIUS_M, environment_light_field
 from satsight.lighting.light_field import LightField
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
-from satsight.render.buffers import SunLight
+from satsight.render.buffers import RadianceImage, SunLight
 from satsight.render.renderer import Renderer
 from satsight.scene.loading import load_mesh
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.obj_export import write_obj
 from satsight.scene.procedural import generate_satellite
+from satsight.sensor.chain import DnImage, SensorChain
 
 CONVENTIONS = {
     "units": "SI; names carry non-SI units",
@@ -123,6 +130,105 @@ def frame_seed(scenario_seed: int, frame_index: int) -> int:
     return int(state[0]) << 32 | int(state[1])
 
 
+def sensor_noise_rng(scenario_seed: int, frame_index: int) -> np.random.Generator:
+    """The detector-noise generator of one frame: its own stream, apart from the render's."""
+    return np.random.default_rng(np.random.SeedSequence([scenario_seed, frame_index, 1]))
+
+
+def build_sensor(scenario: Scenario) -> SensorChain:
+    """The scenario's camera optics and detector, ready to expose frames."""
+    camera = scenario.camera
+    return SensorChain(
+        camera=camera.build(),
+        optics=camera.build_optics(),
+        detector=camera.build_detector(),
+        band_nm=scenario.sun.band_nm,
+        spectrum=scenario.sun.spectrum,
+        exposure=camera.exposure,
+        camera_seed=camera.seed,
+    )
+
+
+@dataclass(frozen=True)
+class FrameStars:
+    """The stars of one frame: their photons on the focal plane and their labels."""
+
+    photons: np.ndarray | None
+    labels: dict
+
+
+def frame_stars(
+    scenario: Scenario,
+    sensor: SensorChain,
+    track: PoseTrack,
+    index: int,
+    image_object_mask: np.ndarray,
+    center_cam_m: np.ndarray,
+    exposure_time_s: float,
+) -> FrameStars:
+    """The catalogue stars in view of frame ``index``, hidden behind the target (its mask),
+    the Earth (with the atmosphere margin) and the Moon."""
+    config = scenario.stars
+    if not (config.enabled and track.has_sky):
+        return FrameStars(None, {"star_count": 0, "stars": []})
+    from satsight.sensor.star_catalog import load_star_catalog
+    from satsight.sensor.star_field import star_photons_image, stars_in_view
+
+    def sphere(direction: np.ndarray, distance_m: float, radius_m: float):
+        return center_cam_m + direction * distance_m, radius_m
+
+    spheres = [
+        sphere(
+            track.earth_from_target_cam[index],
+            track.earth_distance_m[index],
+            EARTH_EQUATORIAL_RADIUS_M + config.earth_atmosphere_margin_km * 1e3,
+        ),
+        sphere(track.moon_from_target_cam[index], track.moon_distance_m[index], MOON_MEAN_RADIUS_M),
+    ]
+    stars = stars_in_view(
+        load_star_catalog(config.v_mag_limit),
+        track.R_cam_from_gcrs(index),
+        sensor.camera,
+        track.epoch_utc[index],
+        track.camera_velocity_gcrs_m_s[index],
+        occluding_spheres_cam=spheres,
+        object_mask=image_object_mask,
+        band_nm=sensor.band_nm,
+    )
+    photons = star_photons_image(
+        stars,
+        image_object_mask.shape,
+        sensor.optics,
+        sensor.camera.pixel_pitch_m,
+        exposure_time_s,
+        sensor.band_nm,
+    )
+    return FrameStars(photons, stars.labels())
+
+
+def expose_frame(
+    scenario: Scenario,
+    sensor: SensorChain,
+    track: PoseTrack,
+    index: int,
+    image: RadianceImage,
+    center_cam_m: np.ndarray,
+) -> tuple[DnImage, dict]:
+    """Frame ``index`` through the optics and the detector, with the stars behind the target.
+
+    Returns the DN image and the frame's sensor labels (exposure, saturation, stars).
+    """
+    irradiance = sensor.focal_plane_irradiance_w_m2(image)
+    exposure_s = sensor.exposure_time_s(irradiance, image.object_mask)
+    stars = frame_stars(scenario, sensor, track, index, image.object_mask, center_cam_m, exposure_s)
+    if stars.photons is not None:
+        irradiance += sensor.photons_as_irradiance_w_m2(stars.photons, exposure_s)
+    dn_image = sensor.read_out(
+        irradiance, exposure_s, sensor_noise_rng(scenario.seed, index), stars.labels["star_count"]
+    )
+    return dn_image, {"sensor": dn_image.labels(), **stars.labels}
+
+
 def _thumbnail_title(
     index: int, track: PoseTrack, plan_index: int, labels: dict, crop_width_px: int
 ) -> str:
@@ -134,6 +240,22 @@ def _thumbnail_title(
         f"phase {labels['phase_angle_deg']:.0f}°{flags}\n"
         f"{labels['object_pixel_count']} px on target; crop {crop_width_px} px wide"
     )
+
+
+def sensor_summary(sensor: SensorChain) -> dict:
+    """The camera's optics, detector and exposure rule, JSON-ready, for labels.json."""
+    return {
+        "description": "images/ hold raw DN (uint16, bias included); per frame: sensor "
+        "(exposure_time_s, saturated_pixel_count) and the stars drawn",
+        "band_nm": list(sensor.band_nm),
+        "effective_wavelength_m": sensor.effective_wavelength_m,
+        "channel_weights_rgb": sensor.channel_weights.tolist(),
+        "optics": dataclasses.asdict(sensor.optics),
+        "f_number": sensor.optics.f_number,
+        "detector": dataclasses.asdict(sensor.detector),
+        "exposure": sensor.exposure.model_dump(),
+        "camera_seed": sensor.camera_seed,
+    }
 
 
 @dataclass(frozen=True)
@@ -173,6 +295,7 @@ def run_scenario(
     camera = scenario.camera.build()
     track, indices = planned_frames(scenario, mesh)
     renderer = Renderer(mesh, scenario.render.settings(), scenario.render.variant)
+    sensor = build_sensor(scenario)
     frames, thumbs, titles, render_seconds = [], [], [], []
     with (
         staged_folder(out_dir, overwrite) as root,
@@ -191,9 +314,12 @@ def run_scenario(
             )
             render_seconds.append(time.perf_counter() - t0)
             labels = frame_labels(mesh, camera, cam_from_body, sun, image)
+            dn_image, sensor_labels = expose_frame(
+                scenario, sensor, track, int(plan_index), image, cam_from_body.apply(mesh.center_m)
+            )
             # Files are compressed and written in the background while the next frame
             # renders; waiting on older writes bounds the frames held in memory.
-            writes.append(writers.submit(write_frame, root, index, image))
+            writes.append(writers.submit(write_frame, root, index, image, dn_image))
             if index >= _WRITER_THREADS:
                 writes[index - _WRITER_THREADS].result()
             record = {"frame_index": index, "plan_index": int(plan_index)}
@@ -202,11 +328,11 @@ def run_scenario(
             record["plan"] = track.record(plan_index)
             record["sun_direction_body"] = sun.direction_body.tolist()
             record["environment_sh_radiance_w_m2_sr"] = light.sh_radiance_w_m2_sr.tolist()
-            frames.append({**record, **labels})
+            frames.append({**record, **labels, **sensor_labels})
             x0, y0, x1, y1 = crop_box_xyxy_px(labels["bbox_xyxy_px"], image.shape)
             thumbs.append(thumbnail(image.radiance_w_m2_sr[y0:y1, x0:x1]))
             titles.append(_thumbnail_title(index, track, plan_index, labels, x1 - x0))
-            del image
+            del image, dn_image
             if on_frame_done is not None:
                 on_frame_done(index + 1, len(indices))
         for record, write in zip(frames, writes, strict=True):
@@ -243,6 +369,8 @@ def run_scenario(
                     "band_nm": list(scenario.sun.band_nm),
                 },
                 "render_settings": dataclasses.asdict(renderer.settings),
+                "sensor": sensor_summary(sensor),
+                "preview": {"stretch": DN_PREVIEW_STRETCH},
                 "environment_light": {
                     "description": "per frame: environment_sh_radiance_w_m2_sr, earthshine "
                     "and moonshine as real SH, index l(l+1)+m, body frame, direction towards "

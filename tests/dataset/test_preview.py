@@ -1,4 +1,4 @@
-"""Preview images: max-scaled 16-bit radiance, crop windows and thumbnails."""
+"""Preview images: the 8-bit DN stretch, crop windows and thumbnails."""
 
 from __future__ import annotations
 
@@ -10,11 +10,9 @@ import pytest
 from satsight.dataset.preview import (
     PREVIEW_GAMMA,
     crop_box_xyxy_px,
-    radiance_to_uint16,
+    dn_preview_uint8,
     thumbnail,
 )
-
-HALF_COUNT = 0.5
 
 
 @pytest.fixture
@@ -22,54 +20,33 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(7)
 
 
-# --- radiance_to_uint16 -------------------------------------------------------------------
-def test_maximum_maps_to_full_scale_and_scale_reproduces_radiance(rng) -> None:
-    radiance = rng.uniform(0.0, 37.5, size=(41, 29, 3))
-    radiance[rng.random((41, 29, 3)) < 0.4] = 0.0
-    radiance[3, 5, 1] = 80.25  # the single brightest sample
-    counts, scale = radiance_to_uint16(radiance)
-    assert counts.dtype == np.uint16
-    assert counts.shape == radiance.shape
-    assert counts[3, 5, 1] == 65535
-    assert np.count_nonzero(counts == 65535) == 1
-    assert scale == 80.25 / 65535.0
-    # Linear with rounding to nearest: |counts * scale - L| <= half a count.
-    error_counts = np.abs(counts * scale - radiance) / scale
-    assert error_counts.max() <= HALF_COUNT + 1e-9
-    # Exact zeros stay exact zeros.
-    assert np.all(counts[radiance == 0.0] == 0)
+# --- dn_preview_uint8 ----------------------------------------------------------------------
+def test_preview_is_black_at_bias_white_at_full_well_gamma_between() -> None:
+    bias, full = 1000.0, 61000.0
+    dn = np.array([[0, 999, 1000, 16000, 31000, 61000, 65535]], dtype=np.uint16)
+    preview = dn_preview_uint8(dn, bias, full)
+    assert preview.dtype == np.uint8
+    expected = [
+        0,
+        0,
+        0,
+        round(255 * 0.25 ** (1 / PREVIEW_GAMMA)),
+        round(255 * 0.5 ** (1 / PREVIEW_GAMMA)),
+        255,
+        255,
+    ]
+    np.testing.assert_array_equal(preview[0], expected)
 
 
-def test_known_values_round_to_nearest_count() -> None:
-    radiance = np.array([[0.0, 0.25, 0.5, 1.0, 2.0]])
-    counts, scale = radiance_to_uint16(radiance)
-    assert scale == 2.0 / 65535.0
-    # 65535 / 8 = 8191.875 -> 8192, 65535 / 4 = 16383.75 -> 16384, 65535 / 2 = 32767.5 -> 32768
-    np.testing.assert_array_equal(counts, [[0, 8192, 16384, 32768, 65535]])
+def test_preview_is_monotonic_in_dn(rng) -> None:
+    dn = np.sort(rng.integers(0, 65536, size=5000)).astype(np.uint16)
+    preview = dn_preview_uint8(dn, 1000.0, 61000.0)
+    assert np.all(np.diff(preview.astype(int)) >= 0)
 
 
-def test_float32_radiance_keeps_its_scale(rng) -> None:
-    radiance = rng.uniform(0.0, 5.0, size=(16, 16, 3)).astype(np.float32)
-    counts, scale = radiance_to_uint16(radiance)
-    assert scale == float(radiance.max()) / 65535.0
-    assert counts.max() == 65535
-    # float32 arithmetic adds well under 0.01 count of rounding to the half count.
-    assert (np.abs(counts * scale - radiance) / scale).max() <= HALF_COUNT + 0.01
-
-
-def test_negative_values_clip_to_zero() -> None:
-    counts, scale = radiance_to_uint16(np.array([-1.0, 0.5, 1.0]))
-    np.testing.assert_array_equal(counts, [0, 32768, 65535])
-    assert scale == 1.0 / 65535.0
-
-
-@pytest.mark.parametrize("shape", [(12, 9, 3), (0, 4, 3)], ids=["black", "empty"])
-def test_black_frame_gives_zeros_and_zero_scale(shape) -> None:
-    counts, scale = radiance_to_uint16(np.zeros(shape, dtype=np.float32))
-    assert scale == 0.0
-    assert counts.dtype == np.uint16
-    assert counts.shape == shape
-    assert not counts.any()
+def test_preview_needs_full_well_above_bias() -> None:
+    with pytest.raises(ValueError, match="must exceed bias_dn"):
+        dn_preview_uint8(np.zeros((2, 2), np.uint16), 1000.0, 1000.0)
 
 
 # --- crop_box_xyxy_px ----------------------------------------------------------------------

@@ -12,6 +12,7 @@ from satsight.config.scenario import load_scenario, parse_scenario
 from satsight.ephemeris.orbits import orbital_period_s, propagate, state_from_elements
 from satsight.ephemeris.sun_moon import AU_M, sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times
+from satsight.errors import SatsightError
 from satsight.frames.orbital import lvlh_from_inertial
 from satsight.frames.quaternion import matrix_from_quaternion
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
@@ -72,6 +73,45 @@ def test_fly_around_frames_every_5_degrees_look_at_the_box_centre() -> None:
     assert np.all(np.abs(track.range_m - 1000.0) < 20.0)
     np.testing.assert_allclose(np.linalg.norm(track.rho_rtn_m, axis=1), track.range_m, rtol=1e-9)
     assert set(track.interval) == {"5-0.5 km"}
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [{}, {"observer": None, "sampler": {"kind": "rssf", "frame_count": 14}}],
+    ids=["sspt", "rssf"],
+)
+def test_inertial_camera_attitude_and_state_agree_with_the_geometry(changes) -> None:
+    """q_cam_from_gcrs, the camera's GCRS state and the body-frame pose tell one story: the
+    Sun and the box centre seen in camera axes through either route."""
+    scenario = scenario_with(**changes)
+    track = plan_track(scenario, CENTER_M)
+    assert track.has_sky
+    r, v = target_states(scenario, track.time_s)
+    sun = sun_position_gcrs_m(epoch_times(scenario.epoch_utc, track.time_s))
+    for i in range(len(track)):
+        R_cam_from_gcrs = track.R_cam_from_gcrs(i)
+        np.testing.assert_allclose(R_cam_from_gcrs @ R_cam_from_gcrs.T, np.eye(3), atol=1e-12)
+        # The Earth's centre seen from the box centre, through the inertial attitude.
+        R_cam_from_body = track.cam_from_body(i).R_a_from_b
+        center_cam = R_cam_from_body @ CENTER_M + track.t_cam_from_body_m[i]
+        center_gcrs = track.camera_position_gcrs_m[i] + R_cam_from_gcrs.T @ center_cam
+        earth = -center_gcrs / np.linalg.norm(center_gcrs)
+        np.testing.assert_allclose(
+            R_cam_from_gcrs @ earth, track.earth_from_target_cam[i], atol=MICRORAD
+        )
+        to_sun = (sun[i] - center_gcrs) / np.linalg.norm(sun[i] - center_gcrs)
+        np.testing.assert_allclose(
+            R_cam_from_gcrs @ to_sun, track.sun_from_target_cam[i], atol=MICRORAD
+        )
+        # The box centre is the target's orbit point plus its body offset (1.2 m).
+        assert np.linalg.norm(center_gcrs - r[i]) == pytest.approx(
+            np.linalg.norm(CENTER_M), abs=ONE_MM
+        )
+    # The camera moves with orbital speed; an RSSF camera shares the target's velocity.
+    speed = np.linalg.norm(track.camera_velocity_gcrs_m_s, axis=1)
+    assert np.all(np.abs(speed - np.linalg.norm(v, axis=1)) < 5.0)
+    if "sampler" in changes:
+        np.testing.assert_array_equal(track.camera_velocity_gcrs_m_s, v)
 
 
 def test_fly_around_without_j2_is_a_closed_circle() -> None:
@@ -296,6 +336,10 @@ def test_views_in_the_body_frame_keep_their_poses() -> None:
         assert track.range_m[i] == pytest.approx(frame.distance_km * 1e3, rel=1e-12)
     assert isinstance(scenario.frames[0].build(), View)
     assert track.visible.all() and np.all(np.isnan(track.rho_rtn_m))
+    # Views in the body frame have no sky.
+    assert not track.has_sky and np.all(np.isnan(track.q_cam_from_gcrs))
+    with pytest.raises(SatsightError, match="no inertial camera attitude"):
+        track.R_cam_from_gcrs(0)
 
 
 def test_frame_count_over_a_closed_orbit_leaves_out_the_repeated_view() -> None:

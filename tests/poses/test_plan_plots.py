@@ -68,6 +68,9 @@ def _track(
         sun_excluded=flags.get("sun_excluded", zeros),
         phase_rejected=flags.get("phase_rejected", zeros),
         interval=interval,
+        q_cam_from_gcrs=np.full((n, 4), np.nan),
+        camera_position_gcrs_m=np.full((n, 3), np.nan),
+        camera_velocity_gcrs_m_s=np.full((n, 3), np.nan),
     )
 
 

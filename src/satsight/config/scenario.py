@@ -32,6 +32,7 @@ from satsight.config.orbital import (
     VisibilityConfig,
     check_sspt_size,
 )
+from satsight.config.sensor import DetectorConfig, ExposureConfig, OpticsConfig, StarsConfig
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, SPECTRA, band_irradiance_w_m2
@@ -46,6 +47,8 @@ from satsight.render.settings import (
     RenderSettings,
 )
 from satsight.scene.procedural import SATELLITE_CLASSES
+from satsight.sensor.detector import DetectorParameters
+from satsight.sensor.optics import Optics
 
 EARTH_RADIUS_M = 6_371_008.8  # mean radius, IUGG (Moritz 2000, Geodetic Reference System 1980)
 
@@ -55,13 +58,34 @@ class _Strict(BaseModel):
 
 
 class CameraConfig(_Strict):
-    """Camera: a preset, optionally with any of its values overridden."""
+    """Camera: a preset, optionally with any of its values overridden, and its sensor.
+
+    ``seed`` fixes the detector's fixed pattern (PRNU and DSNU maps): one camera, one seed.
+    """
 
     preset: Literal["high_resolution", "wide_field"] = "high_resolution"
     focal_length_m: float | None = Field(default=None, gt=0)
     pixel_pitch_um: float | None = Field(default=None, gt=0)
     width_px: int | None = Field(default=None, ge=1, le=32768)
     height_px: int | None = Field(default=None, ge=1, le=32768)
+    optics: OpticsConfig = OpticsConfig()
+    detector: DetectorConfig = DetectorConfig()
+    exposure: ExposureConfig = ExposureConfig()
+    seed: int = Field(default=0, ge=0)
+
+    @model_validator(mode="after")
+    def _sensor_fits(self) -> CameraConfig:
+        try:
+            self.build_optics()
+        except SatsightError as error:
+            raise ValueError(str(error)) from None
+        return self
+
+    def build_optics(self) -> Optics:
+        return self.optics.build(self.preset, self.build().focal_length_m)
+
+    def build_detector(self) -> DetectorParameters:
+        return self.detector.build(self.build().pixel_pitch_m)
 
     def build(self) -> PinholeCamera:
         base = CAMERA_PRESETS[self.preset]()
@@ -222,7 +246,15 @@ _HAND_PLACED = {
     "earth": ("azimuth_deg", "elevation_deg", "altitude_km"),
     "moon": ("azimuth_deg", "elevation_deg", "distance_km"),
 }
-_ORBITAL_KEYS = ("epoch_utc", "orbit", "attitude", "observer", "visibility", "propagation")
+_ORBITAL_KEYS = (
+    "epoch_utc",
+    "orbit",
+    "attitude",
+    "observer",
+    "visibility",
+    "propagation",
+    "stars",
+)
 
 
 def _differs_from_default(model: BaseModel, key: str) -> bool:
@@ -258,6 +290,7 @@ class Scenario(_Strict):
     visibility: VisibilityConfig = VisibilityConfig()
     propagation: PropagationConfig = PropagationConfig()
     render: RenderConfig = RenderConfig()
+    stars: StarsConfig = StarsConfig()
 
     @field_validator("epoch_utc")
     @classmethod

@@ -1,4 +1,4 @@
-"""Images for people: max-scaled 16-bit radiance, masks and the contact sheet."""
+"""Images for people: the 8-bit DN preview, crops and the contact sheet."""
 
 from __future__ import annotations
 
@@ -10,16 +10,26 @@ import numpy as np
 PREVIEW_GAMMA = 2.2
 
 
-def radiance_to_uint16(radiance_w_m2_sr: np.ndarray) -> tuple[np.ndarray, float]:
-    """Scale radiance linearly so the frame's maximum maps to 65535.
+#: The stretch of the 8-bit previews, as written into labels.json.
+DN_PREVIEW_STRETCH = (
+    "preview = round(255 * clip((DN - bias_dn) / (full_well_dn - bias_dn), 0, 1) ** (1 / 2.2)):"
+    " black at the bias, white at full well, gamma 2.2"
+)
 
-    Returns the uint16 image and the scale in W m^-2 sr^-1 per count (0 for a black frame).
+
+def dn_preview_uint8(dn: np.ndarray, bias_dn: float, full_well_dn: float) -> np.ndarray:
+    """The 8-bit display image of a raw DN frame (``DN_PREVIEW_STRETCH``).
+
+    dn: (H, W) uint16 raw digital numbers. bias_dn: the detector's offset (black).
+    full_well_dn: the mean output at full well (white). Returns (H, W) uint8.
     """
-    peak = float(np.max(radiance_w_m2_sr)) if radiance_w_m2_sr.size else 0.0
-    if peak <= 0.0:
-        return np.zeros(radiance_w_m2_sr.shape, dtype=np.uint16), 0.0
-    scaled = np.rint(np.clip(radiance_w_m2_sr / peak, 0.0, 1.0) * 65535.0)
-    return scaled.astype(np.uint16), peak / 65535.0
+    span = float(full_well_dn) - float(bias_dn)
+    if span <= 0:
+        raise ValueError(f"full_well_dn ({full_well_dn}) must exceed bias_dn ({bias_dn})")
+    lut = np.arange(65536, dtype=np.float64)
+    lut = np.clip((lut - float(bias_dn)) / span, 0.0, 1.0) ** (1.0 / PREVIEW_GAMMA)
+    lut = np.rint(255.0 * lut).astype(np.uint8)
+    return lut[np.asarray(dn, dtype=np.uint16)]
 
 
 def crop_box_xyxy_px(

@@ -46,7 +46,7 @@ from satsight.ephemeris.time import epoch_times, format_epoch_utc
 from satsight.ephemeris.visibility import assess_visibility
 from satsight.errors import SatsightError
 from satsight.frames.orbital import inertial_from_relative_rtn, rtn_from_inertial
-from satsight.frames.quaternion import matrix_from_quaternion
+from satsight.frames.quaternion import matrix_from_quaternion, quaternion_conjugate
 from satsight.poses import relative_motion as rm
 from satsight.poses.attitude import (
     cam_from_body,
@@ -156,6 +156,9 @@ def _views_track(scenario: Scenario, center: np.ndarray) -> PoseTrack:
         sun_excluded=no,
         phase_rejected=no,
         interval=tuple(interval_name_for_range(r, intervals) for r in range_m),
+        q_cam_from_gcrs=np.full((n, 4), np.nan),
+        camera_position_gcrs_m=nan3,
+        camera_velocity_gcrs_m_s=nan3,
     )
 
 
@@ -300,6 +303,7 @@ class _Flight:
     q_gcrs_from_body: np.ndarray
     center_m: np.ndarray  # the target's box centre
     r_camera_m: np.ndarray
+    v_camera_m_s: np.ndarray
     reference_r_m: np.ndarray  # the state the roll policy's reference comes from
     reference_v_m_s: np.ndarray
     roll_policy: str
@@ -324,10 +328,10 @@ def _rssf_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
     center = r_t + R_gcrs_from_body @ center_body
     offset_body = samples.direction * samples.range_m[:, None]
     r_camera = center + np.einsum("nij,nj->ni", R_gcrs_from_body, offset_body)
-    # The roll policy's reference follows the target's orbit: the camera is placed about
-    # the target, not flown.
+    # The camera is placed about the target, not flown: it shares the target's velocity, and
+    # the roll policy's reference follows the target's orbit.
     return _Flight(
-        times, r_t, v_t, q_gcrs_from_body, center, r_camera, r_t, v_t,
+        times, r_t, v_t, q_gcrs_from_body, center, r_camera, v_t, r_t, v_t,
         sampler.camera_roll, samples.roll_rad, tuple(samples.interval),
     )  # fmt: skip
 
@@ -364,7 +368,7 @@ def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
         r_obs, v_obs = fly(*_observer_initial_state(scenario, r0, v0, elements), times)
     roll_rad = np.full(len(times), math.radians(observer.roll_deg))
     return _Flight(
-        times, r_t, v_t, q_gcrs_from_body, center, r_obs, r_obs, v_obs,
+        times, r_t, v_t, q_gcrs_from_body, center, r_obs, v_obs, r_obs, v_obs,
         observer.camera_roll, roll_rad, None,
     )  # fmt: skip
 
@@ -435,5 +439,8 @@ def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
         los_clearance_m=np.asarray(visibility.los_clearance_m),
         sun_boresight_angle_rad=np.asarray(visibility.sun_boresight_angle_rad),
         interval=interval_names,
+        q_cam_from_gcrs=quaternion_conjugate(q_gcrs_from_cam),
+        camera_position_gcrs_m=r_obs,
+        camera_velocity_gcrs_m_s=flight.v_camera_m_s,
         **flags,
     )

@@ -23,6 +23,10 @@ row per frame, every array with the frame on its first axis:
 - flags (N,) bool: ``earth_occulted``, ``eclipsed``, ``sun_excluded``, ``phase_rejected``,
   and ``visible`` (none of the four).
 - ``interval`` (N,): the name of the distance interval a frame belongs to.
+- ``q_cam_from_gcrs`` (N, 4): the camera's attitude in the inertial frame (GCRS axes, which
+  are the ICRS axes), scalar first; ``camera_position_gcrs_m`` (N, 3) and
+  ``camera_velocity_gcrs_m_s`` (N, 3): the camera's geocentric state. All NaN for views
+  given in the body frame (no orbit, so no sky).
 
 The pose convention is the one of the dataset labels (docs/conventions.md).
 """
@@ -35,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from satsight.errors import SatsightError
-from satsight.frames.quaternion import canonical_quaternion
+from satsight.frames.quaternion import canonical_quaternion, matrix_from_quaternion
 from satsight.frames.rigid import RigidTransform
 
 _VECTOR_FIELDS = (
@@ -44,6 +48,8 @@ _VECTOR_FIELDS = (
     "earth_from_target_cam",
     "moon_from_target_cam",
     "rho_rtn_m",
+    "camera_position_gcrs_m",
+    "camera_velocity_gcrs_m_s",
 )
 _SCALAR_FIELDS = (
     "time_s",
@@ -84,6 +90,9 @@ class PoseTrack:
     sun_excluded: np.ndarray
     phase_rejected: np.ndarray
     interval: tuple[str, ...]
+    q_cam_from_gcrs: np.ndarray
+    camera_position_gcrs_m: np.ndarray
+    camera_velocity_gcrs_m_s: np.ndarray
 
     def __post_init__(self) -> None:
         n = np.shape(self.time_s)[0] if np.ndim(self.time_s) == 1 else -1
@@ -98,11 +107,16 @@ class PoseTrack:
             value.flags.writeable = False
             object.__setattr__(self, name, value)
 
-        check("q_cam_from_body", (n, 4), np.float64)
-        if n:
-            q = canonical_quaternion(self.q_cam_from_body)
-            q.flags.writeable = False
-            object.__setattr__(self, "q_cam_from_body", q)
+        for name in ("q_cam_from_body", "q_cam_from_gcrs"):
+            check(name, (n, 4), np.float64)
+            rows = np.all(np.isfinite(getattr(self, name)), axis=1)
+            if rows.any():
+                q = getattr(self, name).copy()
+                q[rows] = canonical_quaternion(q[rows])
+                q.flags.writeable = False
+                object.__setattr__(self, name, q)
+        if not np.all(np.isfinite(self.q_cam_from_body)):
+            raise SatsightError("PoseTrack.q_cam_from_body must be finite in every frame")
         for name in _VECTOR_FIELDS:
             check(name, (n, 3), np.float64)
         for name in _SCALAR_FIELDS:
@@ -129,6 +143,20 @@ class PoseTrack:
         return RigidTransform.from_quaternion(
             self.q_cam_from_body[index], self.t_cam_from_body_m[index]
         )
+
+    @property
+    def has_sky(self) -> bool:
+        """Whether the camera's inertial attitude is known (frames planned from orbits)."""
+        return bool(len(self)) and bool(np.all(np.isfinite(self.q_cam_from_gcrs)))
+
+    def R_cam_from_gcrs(self, index: int) -> np.ndarray:
+        """(3, 3) rotation from GCRS axes to the camera frame of frame ``index``."""
+        if not np.all(np.isfinite(self.q_cam_from_gcrs[index])):
+            raise SatsightError(
+                "this frame plan has no inertial camera attitude (views given in the body "
+                "frame); plan frames from orbits to place the sky"
+            )
+        return matrix_from_quaternion(self.q_cam_from_gcrs[index])
 
     def select(self, keep: np.ndarray) -> PoseTrack:
         """The frames where ``keep`` (N,) bool is true, or those at integer indices."""

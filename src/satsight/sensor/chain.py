@@ -1,0 +1,202 @@
+"""One frame through the camera: rendered radiance (+ stars) -> optics -> detector -> DN.
+
+The renderer gives radiance towards the camera in three channels (each the in-band light
+reflected with that channel's reflectance, docs/design.md "Radiometry and units"). The
+detector is panchromatic over the band, so the channels are first combined into one in-band
+radiance with the weights of the band's three equal sub-bands in the solar spectrum (blue:
+short third, green: middle, red: long), the reading in which each channel's reflectance
+holds over its third of the band. Then, in the detector's physical order:
+
+1. optics: the camera equation E = pi L tau (1 - eps^2) / (4 N^2), then the polychromatic
+   PSF (diffraction of the obscured aperture over the band, jitter), convolved where there
+   is signal (``satsight.sensor.optics``);
+2. stars: their photons, each through the same optics at its exact sub-pixel position
+   (``satsight.sensor.star_field``), added to the focal plane;
+3. exposure: a fixed time, or the time that fills a chosen fraction of full well with the
+   target's bright end (``ExposureConfig``);
+4. detector: photons, QE, fixed pattern, dark current, shot noise, full well and blooming,
+   read noise, gain, bias and ADC (``satsight.sensor.detector``).
+
+Reflected sunlight keeps the Sun's spectrum (grey materials), so the mean photon energy of
+the scene is h c / lambda_eff with lambda_eff the solar photon-weighted wavelength in the
+band. Star photons are counted per star from its own spectrum and handed to the detector
+as the equivalent irradiance at that same photon energy, so their count is exact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.config.sensor import ExposureConfig
+from satsight.errors import SatsightError
+from satsight.lighting.solar_spectrum import (
+    Spectrum,
+    check_band_nm,
+    photon_weighted_wavelength_m,
+    spectral_weights,
+)
+from satsight.render.buffers import RadianceImage
+from satsight.sensor.detector import (
+    DetectorParameters,
+    exposure_for_fill,
+    mean_photon_energy_j,
+    simulate_detector,
+)
+from satsight.sensor.optics import (
+    Optics,
+    apply_optics,
+    band_wavelengths_m,
+    focal_plane_irradiance_w_m2,
+    psf_kernel,
+)
+
+#: Side of the PSF kernel applied to rendered frames, pixels (odd). At f/10 and 450-900 nm
+#: the Airy core is ~0.3-0.6 px in radius; 15 px holds all but ~1 % of the power (the
+#: kernel is renormalised, which puts the far wings back into it).
+PSF_SIZE_PX = 15
+
+
+@dataclass(frozen=True)
+class DnImage:
+    """What the detector reads out for one frame.
+
+    dn: (H, W) uint16 digital numbers (bias included). exposure_time_s: integration time.
+    saturated_pixel_count: pixels within 3 read-noise sigma (+1 DN) of the full-well level,
+    or at the ADC's top code.
+    star_count: stars drawn on the frame. bias_dn and full_well_dn: the camera's offset and
+    the mean output at full well, for display stretches.
+    """
+
+    dn: np.ndarray
+    exposure_time_s: float
+    saturated_pixel_count: int
+    star_count: int
+    bias_dn: float
+    full_well_dn: float
+
+    def labels(self) -> dict:
+        """The frame's sensor labels, JSON-ready."""
+        return {
+            "exposure_time_s": self.exposure_time_s,
+            "saturated_pixel_count": self.saturated_pixel_count,
+            "star_count": self.star_count,
+        }
+
+
+@dataclass(frozen=True)
+class SensorChain:
+    """A camera's optics and detector, prepared once and applied to every frame.
+
+    camera: the pinhole camera (focal length, pixel pitch, image size). optics, detector:
+    the telescope and CCD. band_nm: the detected band (nm). spectrum: the solar spectrum of
+    the reflected light. exposure: the exposure rule. camera_seed: fixes the detector's
+    PRNU and DSNU maps.
+    """
+
+    camera: PinholeCamera
+    optics: Optics
+    detector: DetectorParameters
+    band_nm: tuple[float, float]
+    spectrum: Spectrum = "astm_e490"
+    exposure: ExposureConfig = field(default_factory=ExposureConfig)
+    camera_seed: int = 0
+    psf: np.ndarray = field(init=False, repr=False)
+    channel_weights: np.ndarray = field(init=False, repr=False)
+    effective_wavelength_m: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        lo, hi = check_band_nm(self.band_nm)
+        if abs(self.optics.focal_length_m - self.camera.focal_length_m) > 1e-9:
+            raise SatsightError(
+                f"the optics' focal length ({self.optics.focal_length_m:g} m) differs from the "
+                f"camera's ({self.camera.focal_length_m:g} m); build both from one config"
+            )
+        if abs(self.detector.pixel_pitch_m - self.camera.pixel_pitch_m) > 1e-12:
+            raise SatsightError(
+                f"the detector's pixel pitch ({self.detector.pixel_pitch_m:g} m) differs from "
+                f"the camera's ({self.camera.pixel_pitch_m:g} m); build both from one config"
+            )
+        psf = psf_kernel(
+            self.optics, band_wavelengths_m((lo, hi)), None, self.camera.pixel_pitch_m, PSF_SIZE_PX
+        )
+        blue, green, red = spectral_weights(np.linspace(lo, hi, 4), self.spectrum)
+        object.__setattr__(self, "band_nm", (lo, hi))
+        object.__setattr__(self, "psf", psf.astype(np.float32))
+        object.__setattr__(self, "channel_weights", np.array([red, green, blue], np.float32))
+        object.__setattr__(
+            self, "effective_wavelength_m", photon_weighted_wavelength_m((lo, hi), self.spectrum)
+        )
+
+    @property
+    def photon_energy_j(self) -> float:
+        """Mean photon energy of reflected sunlight in the band, h c / lambda_eff (J)."""
+        return mean_photon_energy_j(self.band_nm, self.effective_wavelength_m)
+
+    def band_radiance_w_m2_sr(self, radiance_rgb_w_m2_sr: np.ndarray) -> np.ndarray:
+        """(H, W) float32 in-band radiance from the (H, W, 3) rendered channels."""
+        radiance = np.asarray(radiance_rgb_w_m2_sr, dtype=np.float32)
+        if radiance.ndim != 3 or radiance.shape[2] != 3:
+            raise SatsightError(
+                f"radiance must be (H, W, 3) W m^-2 sr^-1, got shape {radiance.shape}"
+            )
+        return radiance @ self.channel_weights
+
+    def focal_plane_irradiance_w_m2(self, image: RadianceImage) -> np.ndarray:
+        """(H, W) float32 in-band irradiance on the detector from the rendered scene, after
+        the camera equation and the PSF (W m^-2, pixel-averaged)."""
+        radiance = self.band_radiance_w_m2_sr(image.radiance_w_m2_sr)
+        return apply_optics(focal_plane_irradiance_w_m2(radiance, self.optics), self.psf)
+
+    def exposure_time_s(self, irradiance_w_m2: np.ndarray, object_mask: np.ndarray) -> float:
+        """The frame's exposure time under the exposure rule (s)."""
+        rule = self.exposure
+        if rule.mode == "fixed":
+            return rule.time_s
+        lit = irradiance_w_m2[object_mask]
+        lit = lit[lit > 0]
+        if lit.size == 0:
+            return rule.time_s
+        level = float(np.percentile(lit, rule.percentile))
+        t = exposure_for_fill(
+            level, self.detector, self.band_nm, rule.fill_fraction, self.effective_wavelength_m
+        )
+        return float(np.clip(t, rule.min_time_s, rule.max_time_s))
+
+    def photons_as_irradiance_w_m2(self, photons: np.ndarray, exposure_time_s: float) -> np.ndarray:
+        """Mean photons per pixel over the exposure as the in-band irradiance (W m^-2) the
+        detector turns back into exactly those photons (at ``photon_energy_j``)."""
+        scale = self.photon_energy_j / (self.detector.pixel_area_m2 * exposure_time_s)
+        return np.asarray(photons, dtype=np.float32) * np.float32(scale)
+
+    def read_out(
+        self,
+        irradiance_w_m2: np.ndarray,
+        exposure_time_s: float,
+        rng: np.random.Generator,
+        star_count: int = 0,
+    ) -> DnImage:
+        """The detector's exposure of a focal-plane irradiance image (W m^-2)."""
+        dn = simulate_detector(
+            irradiance_w_m2,
+            exposure_time_s,
+            self.detector,
+            self.band_nm,
+            rng,
+            self.camera_seed,
+            self.effective_wavelength_m,
+        )
+        full_well_dn = min(self.detector.full_well_dn, float(self.detector.adc_max_dn))
+        # A pixel at full well reads full_well_dn give or take its read noise.
+        noise_dn = self.detector.read_noise_e / self.detector.conversion_gain_e_per_dn
+        saturated = dn >= min(full_well_dn - 3.0 * noise_dn - 1.0, self.detector.adc_max_dn)
+        return DnImage(
+            dn=dn,
+            exposure_time_s=float(exposure_time_s),
+            saturated_pixel_count=int(np.count_nonzero(saturated)),
+            star_count=int(star_count),
+            bias_dn=self.detector.bias_dn,
+            full_well_dn=full_well_dn,
+        )

@@ -1,0 +1,74 @@
+"""The camera's sensor keys: defaults, overrides and the messages for bad values."""
+
+from __future__ import annotations
+
+import copy
+
+import pytest
+
+from satsight.config.scenario import parse_scenario
+from satsight.errors import SatsightError
+from satsight.sensor.detector import DetectorParameters
+from satsight.sensor.optics import DEFAULT_APERTURE_DIAMETER_M
+
+STATIC = {
+    "target": {"procedural": {"satellite_class": "two_wings", "seed": 1}},
+    "frames": [{"distance_km": 1.0, "azimuth_deg": 0.0, "elevation_deg": 0.0}],
+}
+
+
+def scenario(**camera):
+    data = copy.deepcopy(STATIC)
+    data["camera"] = camera
+    return parse_scenario(data, "test")
+
+
+@pytest.mark.parametrize("preset", ["high_resolution", "wide_field"])
+def test_defaults_give_the_preset_optics_and_the_ccd231_detector(preset) -> None:
+    camera = scenario(preset=preset).camera
+    optics = camera.build_optics()
+    assert optics.aperture_diameter_m == DEFAULT_APERTURE_DIAMETER_M[preset]
+    assert optics.focal_length_m == camera.build().focal_length_m
+    assert camera.build_detector() == DetectorParameters(pixel_pitch_m=camera.build().pixel_pitch_m)
+    assert camera.exposure.mode == "auto"
+
+
+def test_overrides_reach_the_built_optics_and_detector() -> None:
+    camera = scenario(
+        pixel_pitch_um=12.0,
+        optics={"aperture_diameter_m": 0.25, "obscuration_ratio": 0.3, "jitter_rms_urad": 1.5},
+        detector={"read_noise_e": 3.0, "blooming": False},
+        exposure={"mode": "fixed", "time_s": 0.05},
+    ).camera
+    optics, detector = camera.build_optics(), camera.build_detector()
+    assert optics.f_number == pytest.approx(3.0 / 0.25)
+    assert optics.obscuration_ratio == 0.3
+    assert optics.jitter_rms_rad == pytest.approx(1.5e-6)
+    assert detector.pixel_pitch_m == pytest.approx(12e-6)
+    assert detector.read_noise_e == 3.0 and detector.blooming is False
+
+
+@pytest.mark.parametrize(
+    ("camera", "message"),
+    [
+        ({"optics": {"transmission": 80}}, "camera.optics.transmission"),
+        ({"optics": {"aperture_diameter_m": 5.0}}, "f-number"),
+        ({"detector": {"bias_dn": 70000}}, "bias_dn"),
+        ({"detector": {"adc_bits": 20}}, "camera.detector.adc_bits"),
+        ({"detector": {"dark_current_e_per_s": 0.0}}, "dsnu_e_per_s > 0 needs"),
+        ({"exposure": {"min_time_s": 2.0, "max_time_s": 1.0}}, "must not exceed"),
+        ({"exposure": {"mode": "manual"}}, "camera.exposure.mode"),
+        ({"detector": {"gain": 2.0}}, "unknown key"),
+    ],
+)
+def test_bad_sensor_values_name_the_key(camera, message) -> None:
+    with pytest.raises(SatsightError, match=message.replace(".", r"\.")) as info:
+        scenario(**camera)
+    assert "Traceback" not in str(info.value)
+
+
+def test_stars_need_frames_planned_from_orbits() -> None:
+    data = copy.deepcopy(STATIC)
+    data["stars"] = {"v_mag_limit": 8.0}
+    with pytest.raises(SatsightError, match="stars only apply to frames planned from orbits"):
+        parse_scenario(data, "test")

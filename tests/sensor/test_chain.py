@@ -1,0 +1,161 @@
+"""The frame's sensor chain: channel weights, exposure rule, photon bookkeeping, readout."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.config.sensor import ExposureConfig
+from satsight.errors import SatsightError
+from satsight.lighting.solar_spectrum import band_irradiance_w_m2
+from satsight.render.buffers import RadianceImage
+from satsight.sensor.chain import SensorChain
+from satsight.sensor.detector import DetectorParameters, photons_per_pixel
+from satsight.sensor.optics import Optics
+
+BAND_NM = (450.0, 900.0)
+H_PLANCK_J_S = 6.62607015e-34
+C_M_S = 299_792_458.0
+
+
+def _chain(exposure: ExposureConfig | None = None, **detector) -> SensorChain:
+    camera = PinholeCamera.high_resolution().with_size(96, 80)
+    return SensorChain(
+        camera=camera,
+        optics=Optics.for_preset("high_resolution"),
+        detector=DetectorParameters(pixel_pitch_m=camera.pixel_pitch_m, **detector),
+        band_nm=BAND_NM,
+        exposure=exposure or ExposureConfig(),
+        camera_seed=3,
+    )
+
+
+def _image(radiance_rgb: np.ndarray) -> RadianceImage:
+    h, w = radiance_rgb.shape[:2]
+    hit = radiance_rgb.any(axis=2)
+    return RadianceImage(
+        radiance_w_m2_sr=radiance_rgb.astype(np.float32),
+        depth_m=np.where(hit, np.float32(1000.0), np.float32(0.0)),
+        part_id=hit.astype(np.uint16),
+        normals_cam=np.zeros((h, w, 3), np.float32),
+    )
+
+
+def test_channel_weights_are_the_solar_thirds_of_the_band() -> None:
+    chain = _chain()
+    thirds = [band_irradiance_w_m2((450.0 + 150.0 * k, 600.0 + 150.0 * k)) for k in range(3)]
+    blue, green, red = np.array(thirds) / sum(thirds)
+    np.testing.assert_allclose(chain.channel_weights, [red, green, blue], rtol=1e-6)
+    # A grey surface: every channel equal, so the band radiance is that value.
+    grey = np.full((4, 5, 3), 7.5, np.float32)
+    np.testing.assert_allclose(chain.band_radiance_w_m2_sr(grey), 7.5, rtol=1e-6)
+
+
+def test_effective_wavelength_is_inside_the_band_and_sets_the_photon_energy() -> None:
+    chain = _chain()
+    assert 450e-9 < chain.effective_wavelength_m < 900e-9
+    assert chain.photon_energy_j == pytest.approx(
+        H_PLANCK_J_S * C_M_S / chain.effective_wavelength_m, rel=1e-12
+    )
+
+
+def test_photons_as_irradiance_round_trips_through_the_detector() -> None:
+    chain = _chain()
+    photons = np.random.default_rng(1).uniform(0.0, 5e4, size=(6, 7)).astype(np.float32)
+    t = 0.004
+    irradiance = chain.photons_as_irradiance_w_m2(photons, t)
+    back = photons_per_pixel(irradiance, chain.detector.pixel_area_m2, t, chain.photon_energy_j)
+    np.testing.assert_allclose(back, photons, rtol=1e-6)
+
+
+def test_auto_exposure_fills_the_chosen_fraction_at_the_percentile() -> None:
+    chain = _chain(ExposureConfig(fill_fraction=0.6, percentile=50.0))
+    irradiance = np.zeros((80, 96), np.float32)
+    irradiance[10:30, 10:60] = 0.25
+    irradiance[30:50, 10:60] = 0.5  # the median of the lit target is between the two
+    irradiance[50:52, 10:60] = 400.0  # a glint, far above
+    mask = irradiance > 0
+    t = chain.exposure_time_s(irradiance, mask)
+    level = float(np.percentile(irradiance[mask], 50.0))
+    d = chain.detector
+    rate_e_per_s = d.quantum_efficiency * level * d.pixel_area_m2 / chain.photon_energy_j
+    assert t == pytest.approx(0.6 * d.full_well_e / (rate_e_per_s + d.dark_current_e_per_s))
+
+
+def test_exposure_rule_falls_back_and_clips() -> None:
+    irradiance = np.full((80, 96), 1e-9, np.float32)
+    mask = np.zeros((80, 96), bool)
+    # No target on the frame: the configured time.
+    assert _chain(ExposureConfig(time_s=0.02)).exposure_time_s(irradiance, mask) == 0.02
+    # A very faint target: the longest time allowed.
+    mask[:5, :5] = True
+    clipped = _chain(ExposureConfig(max_time_s=2.0)).exposure_time_s(irradiance, mask)
+    assert clipped == 2.0
+    # Fixed mode ignores the scene.
+    fixed = _chain(ExposureConfig(mode="fixed", time_s=0.5)).exposure_time_s(irradiance, mask)
+    assert fixed == 0.5
+
+
+def test_uniform_patch_reads_the_closed_form_dn() -> None:
+    """A large grey patch: inside it, mean DN = bias + QE E A t / (h c / lambda_eff) / g with
+    E = pi L tau / (4 N^2); the sky around it reads the bias."""
+    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002))
+    radiance = np.zeros((80, 96, 3), np.float32)
+    radiance[20:60, 20:76] = 30.0
+    image = _image(radiance)
+    irradiance = chain.focal_plane_irradiance_w_m2(image)
+    dn = chain.read_out(irradiance, 0.002, np.random.default_rng(5)).dn
+    d, optics = chain.detector, chain.optics
+    e_w_m2 = math.pi * 30.0 * optics.transmission / (4.0 * optics.f_number**2)
+    electrons = d.quantum_efficiency * e_w_m2 * d.pixel_area_m2 * 0.002 / chain.photon_energy_j
+    inner = dn[28:52, 28:68].astype(np.float64)
+    # Per-pixel spread: shot noise, 1 % PRNU, read noise and quantisation, in DN.
+    sigma_dn = math.sqrt(electrons + (0.01 * electrons) ** 2 + d.read_noise_e**2) / (
+        d.conversion_gain_e_per_dn
+    )
+    sem = math.hypot(sigma_dn, math.sqrt(1 / 12)) / math.sqrt(inner.size)
+    expected = d.bias_dn + electrons / d.conversion_gain_e_per_dn
+    assert abs(inner.mean() - expected) < 5 * sem
+    sky = dn[:8, :].astype(np.float64)
+    assert abs(sky.mean() - d.bias_dn) < 5 * 1.0 / math.sqrt(sky.size) + 0.01
+
+
+def test_same_seed_same_bytes_other_seed_other_bytes() -> None:
+    chain = _chain()
+    irradiance = np.full((80, 96), 0.3, np.float32)
+    a = chain.read_out(irradiance, 0.001, np.random.default_rng(9)).dn
+    b = chain.read_out(irradiance, 0.001, np.random.default_rng(9)).dn
+    c = chain.read_out(irradiance, 0.001, np.random.default_rng(10)).dn
+    assert a.tobytes() == b.tobytes()
+    assert a.tobytes() != c.tobytes()
+
+
+def test_saturated_pixels_are_counted() -> None:
+    chain = _chain(blooming=False)
+    irradiance = np.zeros((80, 96), np.float32)
+    irradiance[:3, :4] = 1e6  # far beyond full well in any exposure
+    out = chain.read_out(irradiance, 0.01, np.random.default_rng(2))
+    assert out.saturated_pixel_count == 12
+    assert out.exposure_time_s == 0.01
+    assert out.labels()["saturated_pixel_count"] == 12
+
+
+def test_optics_and_camera_must_agree() -> None:
+    camera = PinholeCamera.high_resolution()
+    with pytest.raises(SatsightError, match="focal length"):
+        SensorChain(
+            camera=camera,
+            optics=Optics.for_preset("wide_field"),
+            detector=DetectorParameters(),
+            band_nm=BAND_NM,
+        )
+    with pytest.raises(SatsightError, match="pixel pitch"):
+        SensorChain(
+            camera=camera,
+            optics=Optics.for_preset("high_resolution"),
+            detector=DetectorParameters(pixel_pitch_m=10e-6),
+            band_nm=BAND_NM,
+        )
