@@ -345,3 +345,30 @@ def test_bench_bad_sizes_exit_2(tmp_path: Path, sizes: str) -> None:
     assert result.returncode == 2
     assert "--sizes must look like" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+# --- satsight camera ---------------------------------------------------------------------------
+def test_camera_command_reports_limiting_magnitudes_and_plots_the_mtf(tmp_path: Path) -> None:
+    out = tmp_path / "camera"
+    result = _satsight("camera", "--out", str(out), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "limiting V at SNR 5" in result.stdout
+    report = json.loads((out / "camera.json").read_text(encoding="utf-8"))
+    assert report["f_number"] == pytest.approx(10.0)
+    assert report["ifov_urad"] == pytest.approx(5.0)
+    limits = [row["v_mag"] for row in report["limiting_magnitude_snr5"]]
+    # Read-noise limited (a few photo-electrons against 5 e- rms): the signal needed is
+    # fixed, so the limit moves 2.5 mag per decade of exposure; shot noise bends it a little.
+    steps = np.diff(limits)
+    assert np.all(steps > 2.3) and np.all(steps <= 2.5 + 1e-9)
+    reference = report["reference_exposure"]
+    assert 1e-4 < reference["exposure_time_s"] < 1e-2
+    assert read_png(out / "system_mtf.png").ndim == 3
+
+
+def test_camera_command_rejects_a_bad_scenario(tmp_path: Path) -> None:
+    config = tmp_path / "bad.yaml"
+    config.write_text("camera: {optics: {transmission: 2}}\n", encoding="utf-8")
+    result = _satsight("camera", str(config), "--out", str(tmp_path / "c"), cwd=tmp_path)
+    assert result.returncode == 2
+    assert "transmission" in result.stderr and "Traceback" not in result.stderr

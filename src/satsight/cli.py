@@ -1,4 +1,4 @@
-"""Command line: ``satsight demo | generate | plan | ablate | bench | satellite``.
+"""Command line: ``satsight demo | generate | plan | camera | ablate | bench | satellite``.
 
 A thin shell over ``satsight.pipeline``: user errors print a message and exit with status 2,
 never a traceback.
@@ -153,6 +153,64 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
         f"range {track.range_m.min() / 1e3:.3g} to {track.range_m.max() / 1e3:.3g} km"
     )
     console.print("wrote " + ", ".join(str(p) for p in written))
+
+
+@cli.command()
+@click.argument("config", type=click.Path(path_type=Path), required=False)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    default=Path("out/camera"),
+    show_default=True,
+    help="folder for camera.json and system_mtf.png (created; files of the same name are replaced)",
+)
+def camera(config: Path | None, out_dir: Path) -> None:
+    """Describe the camera of CONFIG (default: the bundled example): optics, sampling,
+    exposure and limiting magnitude at SNR 5; plot its system MTF."""
+    from rich.table import Table
+
+    from satsight.config.scenario import load_scenario
+    from satsight.pipeline import build_sensor
+    from satsight.sensor.camera_report import SNR_LIMIT, camera_report
+    from satsight.sensor.optics import band_wavelengths_m, plot_system_mtf
+
+    scenario = load_scenario(config or example_scenario_path())
+    sensor = build_sensor(scenario)
+    report = camera_report(sensor)
+    table = Table(title=f"camera of '{scenario.name}' ({scenario.camera.preset})")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    rows = [
+        ("focal length / aperture", f"{report['focal_length_m']:g} m / "
+         f"{report['aperture_diameter_m']:g} m (f/{report['f_number']:.3g})"),
+        ("IFOV", f"{report['ifov_urad']:.3g} urad/px"),
+        ("field of view", "{:.3f} x {:.3f} deg".format(*report["fov_deg"])),
+        ("Airy radius at lambda_eff", f"{report['airy_radius_px']:.2f} px "
+         f"({report['effective_wavelength_nm']:.0f} nm)"),
+        ("reference exposure", f"{report['reference_exposure']['exposure_time_s'] * 1e3:.3g} ms"),
+        (f"limiting V at SNR {SNR_LIMIT:g}, reference exposure",
+         f"{report['reference_exposure']['v_mag']:.2f}"),
+    ]  # fmt: skip
+    rows += [
+        (f"limiting V at SNR {SNR_LIMIT:g}, {row['exposure_time_s'] * 1e3:g} ms",
+         f"{row['v_mag']:.2f}")
+        for row in report["limiting_magnitude_snr5"]
+    ]  # fmt: skip
+    for name, value in rows:
+        table.add_row(name, value)
+    Console().print(table)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    json_path = out_dir / "camera.json"
+    json_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    mtf_path = plot_system_mtf(
+        sensor.optics,
+        sensor.camera.pixel_pitch_m,
+        sensor.band_nm,
+        out_dir / "system_mtf.png",
+        n_wavelengths=len(band_wavelengths_m(sensor.band_nm)),
+    )
+    console.print(f"wrote {json_path}, {mtf_path}")
 
 
 @cli.command()

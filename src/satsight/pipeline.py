@@ -149,28 +149,22 @@ def build_sensor(scenario: Scenario) -> SensorChain:
     )
 
 
-@dataclass(frozen=True)
-class FrameStars:
-    """The stars of one frame: their photons on the focal plane and their labels."""
-
-    photons: np.ndarray | None
-    labels: dict
-
-
-def frame_stars(
+def add_frame_stars(
     scenario: Scenario,
     sensor: SensorChain,
     track: PoseTrack,
     index: int,
-    image_object_mask: np.ndarray,
+    irradiance_w_m2: np.ndarray,
+    object_mask: np.ndarray,
     center_cam_m: np.ndarray,
     exposure_time_s: float,
-) -> FrameStars:
-    """The catalogue stars in view of frame ``index``, hidden behind the target (its mask),
-    the Earth (with the atmosphere margin) and the Moon."""
+) -> dict:
+    """Add the catalogue stars in view of frame ``index`` to its focal-plane irradiance, in
+    place, hidden behind the target (its mask), the Earth (with the atmosphere margin) and
+    the Moon; return the frame's star labels."""
     config = scenario.stars
     if not (config.enabled and track.has_sky):
-        return FrameStars(None, {"star_count": 0, "stars": []})
+        return {"star_count": 0}
     from satsight.sensor.star_catalog import load_star_catalog
     from satsight.sensor.star_field import star_photons_image, stars_in_view
 
@@ -192,18 +186,20 @@ def frame_stars(
         track.epoch_utc[index],
         track.camera_velocity_gcrs_m_s[index],
         occluding_spheres_cam=spheres,
-        object_mask=image_object_mask,
+        object_mask=object_mask,
         band_nm=sensor.band_nm,
     )
-    photons = star_photons_image(
+    star_photons_image(
         stars,
-        image_object_mask.shape,
+        object_mask.shape,
         sensor.optics,
         sensor.camera.pixel_pitch_m,
         exposure_time_s,
         sensor.band_nm,
+        out=irradiance_w_m2,
+        scale=sensor.photons_to_irradiance_factor(exposure_time_s),
     )
-    return FrameStars(photons, stars.labels())
+    return stars.labels()
 
 
 def expose_frame(
@@ -219,14 +215,15 @@ def expose_frame(
     Returns the DN image and the frame's sensor labels (exposure, saturation, stars).
     """
     irradiance = sensor.focal_plane_irradiance_w_m2(image)
-    exposure_s = sensor.exposure_time_s(irradiance, image.object_mask)
-    stars = frame_stars(scenario, sensor, track, index, image.object_mask, center_cam_m, exposure_s)
-    if stars.photons is not None:
-        irradiance += sensor.photons_as_irradiance_w_m2(stars.photons, exposure_s)
-    dn_image = sensor.read_out(
-        irradiance, exposure_s, sensor_noise_rng(scenario.seed, index), stars.labels["star_count"]
+    mask = image.object_mask
+    exposure_s = sensor.exposure_time_s(irradiance, mask)
+    stars = add_frame_stars(
+        scenario, sensor, track, index, irradiance, mask, center_cam_m, exposure_s
     )
-    return dn_image, {"sensor": dn_image.labels(), **stars.labels}
+    dn_image = sensor.read_out(
+        irradiance, exposure_s, sensor_noise_rng(scenario.seed, index), stars["star_count"]
+    )
+    return dn_image, {"sensor": dn_image.labels(), **stars}
 
 
 def _thumbnail_title(

@@ -12,10 +12,15 @@ import math
 import numpy as np
 import pytest
 import scipy.constants as const
+from scipy import stats
 
 from satsight.errors import SatsightError
 from satsight.sensor.detector import (
+    SHOT_NOISE_NORMAL_MIN_MEAN_E,
+    SHOT_NOISE_SPARSE_MAX_MEAN_E,
     DetectorParameters,
+    _draw_camera_maps,
+    _standard_normal_f32,
     expected_electrons,
     exposure_for_fill,
     fixed_pattern_maps,
@@ -328,3 +333,152 @@ def test_bad_inputs_are_refused() -> None:
         )
     with pytest.raises(SatsightError, match="<="):
         shot_noise_electrons(np.full((2, 2), 1e17), rng)
+
+
+# --- shot-noise samplers -----------------------------------------------------------------
+def _chi_square_poisson_p_value(draws: np.ndarray, mean: float) -> float:
+    """Pearson chi-square p-value of integer draws against the Poisson(mean) pmf.
+
+    Bins k = 0, 1, ... while the expected count is >= 20, then one bin for the upper tail
+    (merged into the last bin if its expected count is below 20).
+    """
+    n = draws.size
+    edges = []
+    k = 0
+    while n * stats.poisson.pmf(k, mean) >= 20 or k <= mean:
+        edges.append(k)
+        k += 1
+    expected = n * stats.poisson.pmf(edges, mean)
+    observed = np.array([np.count_nonzero(draws == k) for k in edges], dtype=np.float64)
+    tail_expected = n - expected.sum()
+    tail_observed = n - observed.sum()
+    if tail_expected >= 20:
+        expected = np.append(expected, tail_expected)
+        observed = np.append(observed, tail_observed)
+    else:
+        expected[-1] += tail_expected
+        observed[-1] += tail_observed
+    return float(stats.chisquare(observed, expected).pvalue)
+
+
+@pytest.mark.parametrize("mean", [1e-3, 0.05, 0.099, 0.101, 3.0])
+def test_shot_noise_small_means_follow_the_poisson_pmf(mean: float) -> None:
+    # 0.099 and 0.101 sit on both sides of the thinning limit (0.1 e-); 1e-3 is the dark
+    # signal of a 1 s exposure. Pearson's chi-square at 0.1 % significance (fixed seeds).
+    assert SHOT_NOISE_SPARSE_MAX_MEAN_E == 0.1
+    rng = np.random.default_rng(20)
+    draws = shot_noise_electrons(np.full(SHAPE, mean), rng)
+    assert np.array_equal(draws, np.rint(draws))
+    assert abs(draws.mean() - mean) < N_SIGMA * math.sqrt(mean / N_PIX)
+    assert _chi_square_poisson_p_value(draws, mean) > 1e-3
+
+
+def test_shot_noise_thinning_in_a_mixed_band() -> None:
+    # Columns of dark sky (tiny means, thinned), faint (exact sampler) and bright (normal)
+    # pixels side by side in one band: each group keeps its own Poisson statistics.
+    levels = np.array([2e-3, 0.08, 7.0, 500.0, 4000.0])
+    means = np.tile(levels, (512, 103))[:, :512]
+    draws = shot_noise_electrons(means, np.random.default_rng(21))
+    for level in levels:
+        group = draws[means == level]
+        n = group.size
+        assert abs(group.mean() - level) < N_SIGMA * math.sqrt(level / n)
+        # SE of a Poisson sample variance: sqrt((2 mu^2 + mu) / n).
+        assert abs(group.var() - level) < N_SIGMA * math.sqrt((2 * level**2 + level) / n)
+        if level < 10:
+            assert _chi_square_poisson_p_value(group, level) > 1e-3
+
+
+@pytest.mark.parametrize("mean", [900.0, 999.0, 1000.0, 1001.0, 5000.0, 3e5])
+def test_shot_noise_mean_and_variance_on_both_sides_of_the_normal_limit(mean: float) -> None:
+    # Below 1000 e- the exact sampler, from 1000 e- on rint(mu + sqrt(mu - 1/12) z). Both
+    # give mean mu (SE sqrt(mu / N)) and variance mu (SE sqrt((2 mu^2 + mu) / N) ~ mu
+    # sqrt(2 / N)), whole electrons, skewness 1/sqrt(mu) for Poisson and ~0 for the normal
+    # limit (SE of the sample skewness sqrt(6 / N) = 0.0048).
+    assert SHOT_NOISE_NORMAL_MIN_MEAN_E == 1000.0
+    draws = shot_noise_electrons(np.full(SHAPE, mean), np.random.default_rng(22))
+    assert np.array_equal(draws, np.rint(draws))
+    assert abs(draws.mean() - mean) < N_SIGMA * math.sqrt(mean / N_PIX)
+    assert abs(draws.var() - mean) < N_SIGMA * math.sqrt((2 * mean**2 + mean) / N_PIX)
+    skew = float(stats.skew(draws.ravel()))
+    expected_skew = 1.0 / math.sqrt(mean) if mean < SHOT_NOISE_NORMAL_MIN_MEAN_E else 0.0
+    assert abs(skew - expected_skew) < N_SIGMA * math.sqrt(6.0 / N_PIX)
+    # Exact everywhere on request: Poisson skewness above the limit too.
+    if mean == 5000.0:
+        exact = shot_noise_electrons(
+            np.full(SHAPE, mean), np.random.default_rng(23), normal_min_mean_e=math.inf
+        )
+        assert abs(exact.mean() - mean) < N_SIGMA * math.sqrt(mean / N_PIX)
+
+
+def test_box_muller_normals_are_standard_normal() -> None:
+    # 2^20 draws (odd count: the last pair is cut): mean 0 (SE 1/sqrt(N)), variance 1 (SE
+    # sqrt(2/N)), kurtosis 3 (SE sqrt(24/N)), and the Kolmogorov-Smirnov test at 0.1 %.
+    n = (1 << 20) + 1
+    z = _standard_normal_f32(np.random.default_rng(24), np.empty(n, dtype=np.float32))
+    z64 = z.astype(np.float64)
+    assert np.all(np.isfinite(z64))
+    assert abs(z64.mean()) < N_SIGMA / math.sqrt(n)
+    assert abs(z64.var() - 1.0) < N_SIGMA * math.sqrt(2.0 / n)
+    assert abs(stats.kurtosis(z64)) < N_SIGMA * math.sqrt(24.0 / n)
+    assert stats.kstest(z64, "norm").pvalue > 1e-3
+    # The two halves (cos and sin of one pair) are uncorrelated.
+    half = n // 2
+    assert abs(np.corrcoef(z64[:half], z64[half : 2 * half])[0, 1]) < N_SIGMA / math.sqrt(half)
+
+
+# --- parallel determinism ----------------------------------------------------------------
+BANDED_SHAPE = (700, 1024)  # 256-row bands: 3 bands, the last one short
+
+
+def _star_over_band_edge(params: DetectorParameters) -> np.ndarray:
+    """Irradiance (BANDED_SHAPE): a sky of dark current, a textured target and one over-full
+    pixel at row 250 whose blooming spills across the band edge at row 256."""
+    rng = np.random.default_rng(30)
+    irradiance = np.zeros(BANDED_SHAPE)
+    irradiance[100:600, 100:500] = rng.uniform(0.2, 1.0, (500, 400)) * _irradiance_for_electrons(
+        params, 2e5, 1.0
+    )
+    irradiance[250, 800] = _irradiance_for_electrons(params, 41 * params.full_well_e, 1.0)
+    return irradiance
+
+
+def test_detector_same_bytes_for_any_thread_count() -> None:
+    params = DetectorParameters()
+    irradiance = _star_over_band_edge(params)
+
+    def frame(threads: int, seed: int = 5) -> bytes:
+        rng = np.random.default_rng(seed)
+        return simulate_detector(
+            irradiance, 1.0, params, BAND_NM, rng, 12, threads=threads
+        ).tobytes()
+
+    one = frame(1)
+    assert frame(2) == one
+    assert frame(3) == one
+    assert frame(1) == one
+    assert frame(2, seed=6) != one
+    e = np.full(BANDED_SHAPE, 1e4)
+    reads = [read_out_dn(e, params, np.random.default_rng(8), threads=k) for k in (1, 2)]
+    assert reads[0].tobytes() == reads[1].tobytes()
+    shots = [shot_noise_electrons(e, np.random.default_rng(9), threads=k) for k in (1, 2)]
+    assert shots[0].tobytes() == shots[1].tobytes()
+    maps = [_draw_camera_maps(BANDED_SHAPE, 0.01, 1.0, 0.5, 3, k) for k in (1, 2)]
+    assert maps[0][0].tobytes() == maps[1][0].tobytes()
+    assert maps[0][1].tobytes() == maps[1][1].tobytes()
+
+
+def test_blooming_across_a_band_edge_is_read_out() -> None:
+    # 41 full wells in one pixel: 20 full wells spill up and 20 down, 41 full pixels in
+    # rows 230..270 of column 800; rows 256..270 lie in a band with no over-full pixel of its
+    # own, which must be read out again after the blooming.
+    params = dataclasses.replace(NO_FPN, read_noise_e=0.0)
+    dn = simulate_detector(
+        _star_over_band_edge(params), 1.0, params, BAND_NM, np.random.default_rng(31), 0
+    )
+    column = dn[:, 800].astype(np.float64)
+    full = np.flatnonzero(column > params.full_well_dn - 1)
+    np.testing.assert_array_equal(full, np.arange(230, 271))
+    assert np.all(column[:229] <= params.bias_dn + 1)
+    assert np.all(column[272:] <= params.bias_dn + 1)
+    assert np.all(dn <= params.full_well_dn + 1)

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 from scipy import integrate
-from scipy.signal import fftconvolve
+from scipy.signal import convolve2d, fftconvolve
 from scipy.special import j0, j1
 
 from satsight.errors import SatsightError
@@ -23,6 +23,7 @@ from satsight.sensor.optics import (
     apply_optics,
     band_wavelengths_m,
     diffraction_mtf,
+    fft_convolve_same,
     focal_plane_irradiance_w_m2,
     jitter_mtf,
     pixel_mtf,
@@ -382,3 +383,54 @@ def test_plot_system_mtf_writes_png(tmp_path):
     data = path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(data) > 10_000
+
+
+def _textured_scene(shape: tuple[int, int], dtype: type) -> np.ndarray:
+    """A textured extended target, a few point sources and empty space around them."""
+    rng = np.random.default_rng(11)
+    img = np.zeros(shape, dtype=dtype)
+    h, w = shape
+    img[h // 5 : 3 * h // 4, w // 6 : w // 2] = rng.uniform(
+        0.1, 1.0, (3 * h // 4 - h // 5, w // 2 - w // 6)
+    )
+    img[rng.integers(0, h, 20), rng.integers(0, w, 20)] = 5.0
+    img[h - 1, w - 1] = 2.0  # in the corner: the blur is cut by the frame
+    return img
+
+
+@pytest.mark.parametrize("s", [1, 2])
+def test_apply_optics_float32_matches_fftconvolve_for_any_thread_count(s):
+    # 900 x 1500 samples: several row and column bands of the banded FFT. The reference is
+    # scipy's fftconvolve of the whole frame in float32; the two differ by FFT round-off
+    # (~1e-7 relative per term, a few e-7 of the peak after ~20 butterfly levels).
+    psf = psf_kernel(OPTICS, band_wavelengths_m(None, 4), None, 5e-6 / s, 15)
+    img = _textured_scene((900, 1500), np.float32)
+    ref = fftconvolve(img, psf.astype(np.float32), mode="same")
+    ref = np.maximum(ref, 0).reshape(900 // s, s, 1500 // s, s).mean(axis=(1, 3))
+    outs = [apply_optics(img, psf, s, threads=k) for k in (1, 2, 3)]
+    assert outs[0].dtype == np.float32
+    np.testing.assert_allclose(outs[0], ref, rtol=0, atol=4e-6 * float(ref.max()))
+    assert outs[1].tobytes() == outs[0].tobytes()
+    assert outs[2].tobytes() == outs[0].tobytes()
+
+
+def test_fft_convolve_same_matches_direct_convolution():
+    # Float64 against scipy's direct (non-FFT) convolution: non-symmetric kernels, an image
+    # split into several bands, and a kernel larger than the image.
+    rng = np.random.default_rng(12)
+    img = rng.uniform(0.0, 1.0, (700, 1500))
+    kern = rng.uniform(0.0, 1.0, (15, 9))
+    direct = convolve2d(img, kern, mode="same")
+    np.testing.assert_allclose(fft_convolve_same(img, kern, threads=2), direct, rtol=1e-10)
+    small = rng.uniform(0.0, 1.0, (5, 7))
+    big_kernel = rng.uniform(0.0, 1.0, (15, 11))
+    np.testing.assert_allclose(
+        fft_convolve_same(small, big_kernel),
+        fftconvolve(small, big_kernel, mode="same"),
+        rtol=1e-10,
+    )
+    np.testing.assert_allclose(
+        fft_convolve_same(small, big_kernel),
+        convolve2d(small, big_kernel, mode="same"),
+        rtol=1e-10,
+    )

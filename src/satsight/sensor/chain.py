@@ -59,6 +59,10 @@ from satsight.sensor.optics import (
 PSF_SIZE_PX = 15
 
 
+#: Largest number of target pixels the auto exposure takes its percentile over.
+EXPOSURE_SAMPLE_PIXELS = 1 << 20
+
+
 @dataclass(frozen=True)
 class DnImage:
     """What the detector reads out for one frame.
@@ -146,16 +150,41 @@ class SensorChain:
 
     def focal_plane_irradiance_w_m2(self, image: RadianceImage) -> np.ndarray:
         """(H, W) float32 in-band irradiance on the detector from the rendered scene, after
-        the camera equation and the PSF (W m^-2, pixel-averaged)."""
-        radiance = self.band_radiance_w_m2_sr(image.radiance_w_m2_sr)
-        return apply_optics(focal_plane_irradiance_w_m2(radiance, self.optics), self.psf)
+        the camera equation and the PSF (W m^-2, pixel-averaged).
+
+        Only the target's bounding box carries light (the renderer's background is 0), so
+        the channels are combined there only, with the camera equation folded into the
+        channel weights: E = sum_c w_c L_c pi tau (1 - eps^2) / (4 N^2).
+        """
+        radiance = image.radiance_w_m2_sr
+        if radiance.ndim != 3 or radiance.shape[2] != 3:
+            raise SatsightError(
+                f"radiance must be (H, W, 3) W m^-2 sr^-1, got shape {radiance.shape}"
+            )
+        focal = np.zeros(image.shape, dtype=np.float32)
+        rows = np.flatnonzero(image.object_mask.any(axis=1))
+        if rows.size == 0:
+            return focal
+        cols = np.flatnonzero(image.object_mask[rows[0] : rows[-1] + 1].any(axis=0))
+        box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+        factor = float(focal_plane_irradiance_w_m2(1.0, self.optics))
+        weights = (self.channel_weights * np.float32(factor)).astype(np.float32)
+        np.matmul(radiance[box].astype(np.float32, copy=False), weights, out=focal[box])
+        return apply_optics(focal, self.psf)
 
     def exposure_time_s(self, irradiance_w_m2: np.ndarray, object_mask: np.ndarray) -> float:
-        """The frame's exposure time under the exposure rule (s)."""
+        """The frame's exposure time under the exposure rule (s).
+
+        The percentile is taken over the lit target pixels, or over an evenly strided
+        subset of at most ``EXPOSURE_SAMPLE_PIXELS`` of them on large targets (its rank
+        error, ~1 / sqrt(n) ~ 0.1 %, is far below what the rule needs).
+        """
         rule = self.exposure
         if rule.mode == "fixed":
             return rule.time_s
         lit = irradiance_w_m2[object_mask]
+        if lit.size > EXPOSURE_SAMPLE_PIXELS:
+            lit = lit[:: -(-lit.size // EXPOSURE_SAMPLE_PIXELS)]
         lit = lit[lit > 0]
         if lit.size == 0:
             return rule.time_s
@@ -168,8 +197,12 @@ class SensorChain:
     def photons_as_irradiance_w_m2(self, photons: np.ndarray, exposure_time_s: float) -> np.ndarray:
         """Mean photons per pixel over the exposure as the in-band irradiance (W m^-2) the
         detector turns back into exactly those photons (at ``photon_energy_j``)."""
-        scale = self.photon_energy_j / (self.detector.pixel_area_m2 * exposure_time_s)
+        scale = self.photons_to_irradiance_factor(exposure_time_s)
         return np.asarray(photons, dtype=np.float32) * np.float32(scale)
+
+    def photons_to_irradiance_factor(self, exposure_time_s: float) -> float:
+        """W m^-2 of focal-plane irradiance per mean photon per pixel over the exposure."""
+        return self.photon_energy_j / (self.detector.pixel_area_m2 * exposure_time_s)
 
     def read_out(
         self,

@@ -34,11 +34,14 @@ Physics and sources:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.fft
 from scipy.signal import fftconvolve
 from scipy.special import erf, j1
 
@@ -54,6 +57,9 @@ DEFAULT_N_WAVELENGTHS = 16
 """Number of equal sub-bands whose centre wavelengths sample the band for polychromatic MTF/PSF."""
 
 _FIRST_AIRY_ZERO = 3.8317059702075125  # first zero of J1: first dark ring at v = this
+
+_FFT_BAND_ELEMENTS = 1 << 18
+"""Elements per band of the banded FFT convolution (about 256 rows of a 1000-wide window)."""
 
 
 def _check_positive(name: str, value: float, unit: str) -> float:
@@ -429,19 +435,25 @@ def psf_kernel(
 
 
 def apply_optics(
-    irradiance_w_m2: np.ndarray, psf: np.ndarray, supersampling: int = 1
+    irradiance_w_m2: np.ndarray,
+    psf: np.ndarray,
+    supersampling: int = 1,
+    *,
+    threads: int | None = None,
 ) -> np.ndarray:
     """Blur a supersampled focal-plane irradiance image by the PSF and bin it into pixels.
 
     irradiance_w_m2: (H * s, W * s) focal-plane irradiance (W m^-2) on the supersampled grid
     (s = supersampling). psf: 2-D kernel on the same grid, odd size, normally summing to 1
     (``psf_kernel``), so that power is conserved away from the borders. The convolution is
-    ``scipy.signal.fftconvolve(mode="same")`` (power that spreads beyond the frame is lost);
-    then each s x s block is averaged, so each output pixel holds the pixel-averaged
-    irradiance (W m^-2) and pixel power = value x pixel area. Only the bounding box of the
-    non-zero input, padded by the kernel radius, is convolved (the rest of the frame is
-    empty space and stays exactly 0); an all-zero frame returns zeros without convolving.
-    FFT round-off below zero is clipped to 0. Returns (H, W) in the input's float dtype.
+    the linear, "same"-size convolution of ``scipy.signal.fftconvolve(mode="same")`` (power
+    that spreads beyond the frame is lost), computed by FFT in the image's precision (see
+    ``fft_convolve_same``); then each s x s block is averaged, so each output pixel holds the
+    pixel-averaged irradiance (W m^-2) and pixel power = value x pixel area. Only the
+    bounding box of the non-zero input, padded by the kernel radius, is convolved (the rest
+    of the frame is empty space and stays exactly 0); an all-zero frame returns zeros
+    without convolving. FFT round-off below zero is clipped to 0. ``threads`` (default: all
+    cores) does not change the result. Returns (H, W) in the input's float dtype.
     """
     img = np.asarray(irradiance_w_m2)
     kern = np.asarray(psf, dtype=np.float64)
@@ -457,6 +469,7 @@ def apply_optics(
         )
     if isinstance(supersampling, bool) or int(supersampling) != supersampling or supersampling < 1:
         raise SatsightError(f"supersampling must be a positive integer; got {supersampling!r}")
+    n_threads = _check_threads(threads)
     s = int(supersampling)
     hs, ws = img.shape
     if hs % s or ws % s:
@@ -475,13 +488,119 @@ def apply_optics(
     r1 = min(-(-(rows[-1] + 1 + ry) // s) * s, hs)
     c0 = max(cols[0] - rx, 0) // s * s
     c1 = min(-(-(cols[-1] + 1 + rx) // s) * s, ws)
-    window = img[r0:r1, c0:c1]
-    blurred = fftconvolve(window, kern.astype(img.dtype, copy=False), mode="same")
-    np.maximum(blurred, 0.0, out=blurred)
-    h, w = blurred.shape
-    binned = blurred.reshape(h // s, s, w // s, s).mean(axis=(1, 3))
-    out[r0 // s : r1 // s, c0 // s : c1 // s] = binned
+    target = out[r0 // s : r1 // s, c0 // s : c1 // s]
+
+    def finish(band_r0: int, blurred: np.ndarray) -> None:
+        """Clip a band of blurred rows (a multiple of s) at 0, bin it into ``target``."""
+        h, w = blurred.shape
+        pixels = target[band_r0 // s : (band_r0 + h) // s]
+        if s == 1:
+            np.maximum(blurred, 0.0, out=pixels)
+        else:
+            np.maximum(blurred, 0.0, out=blurred)
+            pixels[...] = blurred.reshape(h // s, s, w // s, s).mean(axis=(1, 3))
+
+    fft_convolve_same(img[r0:r1, c0:c1], kern, threads=n_threads, row_multiple=s, sink=finish)
     return out
+
+
+def fft_convolve_same(
+    image: np.ndarray,
+    kernel: np.ndarray,
+    *,
+    threads: int | None = None,
+    row_multiple: int = 1,
+    sink: Callable[[int, np.ndarray], None] | None = None,
+) -> np.ndarray | None:
+    """Linear convolution of ``image`` (H, W) with ``kernel`` (ky, kx), "same" size, by FFT.
+
+    The same result as ``scipy.signal.fftconvolve(image, kernel, mode="same")`` up to FFT
+    round-off (float32 images are transformed in single precision, as scipy does; float64 in
+    double): out[i, j] = sum_ab image[i + (ky - 1) // 2 - a, j + (kx - 1) // 2 - b] k[a, b],
+    zero outside the image. Both axes are zero-padded to 5-smooth lengths M >= H + ky - 1 and
+    N >= W + kx - 1, so the cyclic convolution of the FFTs is the linear one. The work is
+    split into fixed bands (a function of the sizes only) run on ``threads`` threads
+    (default: all cores): real FFTs of row bands, then per band of columns the column FFT,
+    the product with the kernel's spectrum and the inverse column FFT, then inverse real FFTs
+    of row bands. The kernel's spectrum is made per column band from the real FFT of its ky
+    rows, as scipy makes it (no BLAS call: OpenBLAS's own threads would compete with these).
+
+    With ``sink``, each band of output rows (a multiple of ``row_multiple`` rows except at
+    the end) is passed to ``sink(first_row, rows)`` as it is made, the rows being a scratch
+    array it may change, and None is returned; else the (H, W) result is returned.
+    """
+    img = np.asarray(image)
+    real = np.float32 if img.dtype == np.float32 else np.float64
+    img = img.astype(real, copy=False)
+    kern = np.asarray(kernel, dtype=np.float64)
+    if img.ndim != 2 or kern.ndim != 2 or 0 in img.shape or 0 in kern.shape:
+        raise SatsightError(
+            f"image and kernel must be non-empty 2-D arrays; got {img.shape} and {kern.shape}"
+        )
+    n_threads = _check_threads(threads)
+    complex_dtype = np.complex64 if real is np.float32 else np.complex128
+    h, w = img.shape
+    ky, kx = kern.shape
+    oy, ox = (ky - 1) // 2, (kx - 1) // 2
+    m = scipy.fft.next_fast_len(h + ky - 1)
+    n = scipy.fft.next_fast_len(w + kx - 1, real=True)
+    nf = n // 2 + 1
+    kern_rows = scipy.fft.rfft(kern.astype(real), n, axis=1)  # (ky, nf), as scipy does
+    spectrum = np.empty((h, nf), dtype=complex_dtype)
+    result = np.empty((h, w), dtype=real) if sink is None else None
+    step = max(1, _FFT_BAND_ELEMENTS // n)
+    step = max(row_multiple, step // row_multiple * row_multiple)
+    row_bands = [(a, min(a + step, h)) for a in range(0, h, step)]
+    col_step = max(1, _FFT_BAND_ELEMENTS // m)
+    col_bands = [(a, min(a + col_step, nf)) for a in range(0, nf, col_step)]
+
+    def forward(i: int) -> None:
+        a, b = row_bands[i]
+        padded = np.zeros((b - a, n), dtype=real)  # faster than rfft's own zero-padding
+        padded[:, :w] = img[a:b]
+        spectrum[a:b] = scipy.fft.rfft(padded, axis=1)
+
+    def columns(i: int) -> None:
+        a, b = col_bands[i]
+        block = scipy.fft.fft(spectrum[:, a:b], m, axis=0)
+        block *= scipy.fft.fft(kern_rows[:, a:b], m, axis=0)
+        spectrum[:, a:b] = scipy.fft.ifft(block, axis=0, overwrite_x=True)[oy : oy + h]
+
+    def inverse(i: int) -> None:
+        a, b = row_bands[i]
+        rows = scipy.fft.irfft(spectrum[a:b], n, axis=1)[:, ox : ox + w]
+        if sink is None:
+            result[a:b] = rows
+        else:
+            sink(a, rows)
+
+    _run_jobs(forward, len(row_bands), n_threads)
+    _run_jobs(columns, len(col_bands), n_threads)
+    _run_jobs(inverse, len(row_bands), n_threads)
+    return result
+
+
+def _check_threads(threads: int | None) -> int:
+    if threads is None:
+        try:
+            return max(1, len(os.sched_getaffinity(0)))
+        except AttributeError:  # not on Linux
+            return max(1, os.cpu_count() or 1)
+    if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
+        raise SatsightError(
+            f"threads must be a whole number >= 1 or None (all cores), got {threads!r}"
+        )
+    return int(threads)
+
+
+def _run_jobs(job: Callable[[int], None], count: int, threads: int) -> None:
+    """job(0), ..., job(count - 1) on ``threads`` threads (scipy.fft releases the GIL)."""
+    if threads == 1 or count == 1:
+        for i in range(count):
+            job(i)
+        return
+    with ThreadPoolExecutor(max_workers=min(threads, count)) as pool:
+        list(pool.map(job, range(count)))
 
 
 # --- plot ------------------------------------------------------------------------------------
