@@ -161,12 +161,13 @@ def add_frame_stars(
 ) -> dict:
     """Add the catalogue stars in view of frame ``index`` to its focal-plane irradiance, in
     place, hidden behind the target (its mask), the Earth (with the atmosphere margin) and
-    the Moon; return the frame's star labels."""
+    the Moon; return the frame's star labels (each star's catalogue id, pixel position, V
+    magnitude and mean photons reaching the detector over the exposure)."""
     config = scenario.stars
     if not (config.enabled and track.has_sky):
         return {"star_count": 0}
     from satsight.sensor.star_catalog import load_star_catalog
-    from satsight.sensor.star_field import star_photons_image, stars_in_view
+    from satsight.sensor.star_field import star_photon_counts, star_photons_image, stars_in_view
 
     def sphere(direction: np.ndarray, distance_m: float, radius_m: float):
         return center_cam_m + direction * distance_m, radius_m
@@ -199,7 +200,11 @@ def add_frame_stars(
         out=irradiance_w_m2,
         scale=sensor.photons_to_irradiance_factor(exposure_time_s),
     )
-    return stars.labels()
+    labels = stars.labels()
+    photons = star_photon_counts(stars.photon_flux_m2_s, sensor.optics, exposure_time_s)
+    for record, count in zip(labels["stars"], photons, strict=True):
+        record["photons"] = float(count)
+    return labels
 
 
 def expose_frame(

@@ -11,8 +11,8 @@ Assumptions (the paper gives no aperture and no transmission):
   Cassegrain sizes for such focal lengths, not values from the paper.
 * ``DEFAULT_TRANSMISSION`` = 0.8: band-averaged transmission of the optics (mirror or lens
   losses and filters), an assumption.
-* No central obscuration, no jitter, no aberrations by default: a diffraction-limited,
-  unobscured, perfectly stable telescope.
+* No central obscuration, no jitter, no defocus, no aberrations by default: a
+  diffraction-limited, unobscured, perfectly focused and stable telescope.
 
 Physics and sources:
 
@@ -29,6 +29,13 @@ Physics and sources:
   power inside the first dark ring), and its annular form (Mahajan, Sec. 2.4).
 * Pixel MTF |sinc(p f)| for a 100 % fill factor, and jitter MTF exp(-2 pi^2 sigma^2 f^2) for a
   Gaussian random jitter of per-axis RMS sigma: Holst, Ch. 10 and 11.
+* Defocus, geometrical optics: a focal-plane shift dz spreads a point into a uniform disc of
+  diameter d = dz / N, whose OTF is 2 J1(pi d f) / (pi d f) (the Fourier transform of the
+  pillbox; Holst, Ch. 10, optics MTF; Smith, "Modern Optical Engineering", 4th ed., Ch. 11).
+  It is the large-defocus limit of Hopkins' diffraction defocus OTF (Proc. R. Soc. A 231, 91
+  (1955)): valid when the peak defocus wavefront error W020 = d / (8 N) exceeds about one
+  wave, i.e. d > ~8 lambda N; for smaller d it overstates the loss at high frequencies. Here
+  it multiplies the diffraction OTF, which is the usual cascade approximation.
 """
 
 from __future__ import annotations
@@ -98,6 +105,20 @@ def _check_obscuration(value: float) -> float:
     return v
 
 
+def _check_blur_diameter(value: float, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (v >= 0 and math.isfinite(v)):
+        raise SatsightError(
+            f"{name} (the geometric defocus blur-circle diameter) must be a finite number >= 0 "
+            f"in metres; got {value!r}. A focal-plane shift dz at f-number N gives d = dz / N; "
+            "use 0 for a focused telescope."
+        )
+    return v
+
+
 def _frequencies(freq_cyc_per_m: float | np.ndarray) -> np.ndarray:
     f = np.abs(np.asarray(freq_cyc_per_m, dtype=np.float64))
     if not np.all(np.isfinite(f)):
@@ -116,7 +137,9 @@ class Optics:
     f (m), the same as the pinhole camera's. transmission: band-averaged transmission tau in
     (0, 1] (default 0.8, an assumption). obscuration_ratio: central-obscuration diameter over
     D, eps in [0, 1). jitter_rms_rad: per-axis RMS line-of-sight jitter during the exposure
-    (rad), modelled as a Gaussian blur.
+    (rad), modelled as a Gaussian blur. defocus_blur_diameter_m: diameter d (m) of the
+    geometric blur circle in the focal plane from a focus error; a focal-plane shift dz gives
+    d = dz / N (see :func:`defocus_mtf`).
     """
 
     aperture_diameter_m: float
@@ -124,6 +147,7 @@ class Optics:
     transmission: float = DEFAULT_TRANSMISSION
     obscuration_ratio: float = 0.0
     jitter_rms_rad: float = 0.0
+    defocus_blur_diameter_m: float = 0.0
 
     def __post_init__(self) -> None:
         _check_positive("aperture_diameter_m", self.aperture_diameter_m, "m")
@@ -136,6 +160,7 @@ class Optics:
             )
         _check_obscuration(self.obscuration_ratio)
         _check_nonnegative("jitter_rms_rad", self.jitter_rms_rad, "rad")
+        _check_blur_diameter(self.defocus_blur_diameter_m, "defocus_blur_diameter_m")
         if self.focal_length_m / self.aperture_diameter_m < 1.0:
             raise SatsightError(
                 f"f-number f/D = {self.focal_length_m / self.aperture_diameter_m:.3g} is below 1; "
@@ -287,6 +312,36 @@ def jitter_mtf(
     return np.exp(-2.0 * math.pi**2 * sigma * sigma * f * f)
 
 
+def _jinc(x: np.ndarray) -> np.ndarray:
+    """2 J1(x) / x, with its limit 1 at x = 0 (x >= 0, float64)."""
+    nz = x > 1e-8
+    xs = np.where(nz, x, 1.0)
+    return np.where(nz, 2.0 * j1(xs) / xs, 1.0)
+
+
+def defocus_mtf(freq_cyc_per_m: float | np.ndarray, blur_diameter_m: float) -> np.ndarray:
+    """Geometric defocus OTF of a uniform blur disc, 2 J1(pi d f) / (pi d f) (dimensionless).
+
+    freq_cyc_per_m: focal-plane spatial frequency (cycles/m), any shape; the sign is ignored.
+    blur_diameter_m: diameter d (m) of the blur circle, d = dz / N for a focal-plane shift dz
+    at f-number N. The PSF is a pillbox of diameter d (geometrical optics), whose Fourier
+    transform is this jinc (Holst, "Electro-Optical Imaging System Performance", Ch. 10;
+    Smith, "Modern Optical Engineering", 4th ed., Ch. 11). It is the geometric approximation,
+    valid when the defocus wavefront error W020 = d / (8 N) is more than about one wave
+    (d >> lambda N); near focus the diffraction defocus OTF (Hopkins 1955) applies instead.
+
+    The result is the OTF, real and signed: it is 1 at f = 0 and everywhere for d = 0, first
+    zero at f = 3.8317 / (pi d), then negative lobes (contrast reversal, down to -0.132) and
+    decaying oscillations. The MTF is its absolute value; the sign is kept here because the
+    OTF is what multiplies into a PSF. Returns float64 shaped like freq.
+    """
+    d = _check_blur_diameter(blur_diameter_m, "blur_diameter_m")
+    f = _frequencies(freq_cyc_per_m)
+    if d == 0.0:
+        return np.ones_like(f)
+    return _jinc(math.pi * d * f)
+
+
 def band_wavelengths_m(
     band_nm: tuple[float, float] | None = None, n: int = DEFAULT_N_WAVELENGTHS
 ) -> np.ndarray:
@@ -334,12 +389,15 @@ def system_mtf(
     wavelengths_m: Sequence[float] | np.ndarray | None = None,
     weights: Sequence[float] | np.ndarray | None = None,
 ) -> np.ndarray:
-    """System MTF: band-averaged diffraction MTF x pixel MTF x jitter MTF (dimensionless).
+    """System MTF: band-averaged diffraction x pixel x jitter x defocus (dimensionless).
 
     The diffraction MTF is averaged over ``wavelengths_m`` with ``weights`` (normalised to sum
     to 1; uniform if None). The default wavelengths are the centres of 16 equal sub-bands of
     the default band (450-900 nm), i.e. a flat spectrum in the detected signal, a stand-in for
-    the true (solar x reflectance x QE) weighting. Returns float64 shaped like freq.
+    the true (solar x reflectance x QE) weighting. With defocus (optics.defocus_blur_diameter_m
+    > 0) the product includes the signed geometric defocus OTF (:func:`defocus_mtf`), so the
+    result is the real system OTF and may be negative beyond the defocus' first zero; its
+    absolute value is the MTF. Returns float64 shaped like freq.
     """
     if wavelengths_m is None:
         wavelengths_m = band_wavelengths_m()
@@ -349,11 +407,14 @@ def system_mtf(
         wk * diffraction_mtf(f, lk, optics.f_number, optics.obscuration_ratio)
         for lk, wk in zip(lam, w, strict=True)
     )
-    return (
+    mtf = (
         diff
         * pixel_mtf(f, pixel_pitch_m)
         * jitter_mtf(f, optics.jitter_rms_rad, optics.focal_length_m)
     )
+    if optics.defocus_blur_diameter_m > 0.0:
+        mtf = mtf * defocus_mtf(f, optics.defocus_blur_diameter_m)
+    return mtf
 
 
 # --- PSF -------------------------------------------------------------------------------------
