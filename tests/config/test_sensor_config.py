@@ -48,6 +48,14 @@ def test_overrides_reach_the_built_optics_and_detector() -> None:
     assert detector.read_noise_e == 3.0 and detector.blooming is False
 
 
+def test_defocus_blur_reaches_the_built_optics_in_metres() -> None:
+    camera = scenario(optics={"defocus_blur_um": 45.0}).camera
+    assert camera.build_optics().defocus_blur_diameter_m == pytest.approx(45e-6)
+    assert scenario().camera.build_optics().defocus_blur_diameter_m == 0.0
+    with pytest.raises(SatsightError, match=r"camera\.optics\.defocus_blur_um"):
+        scenario(optics={"defocus_blur_um": -1.0})
+
+
 @pytest.mark.parametrize(
     ("camera", "message"),
     [

@@ -159,3 +159,20 @@ def test_optics_and_camera_must_agree() -> None:
             detector=DetectorParameters(pixel_pitch_m=10e-6),
             band_nm=BAND_NM,
         )
+
+
+def test_psf_kernel_grows_with_the_defocus_blur_disc() -> None:
+    camera = PinholeCamera.high_resolution().with_size(96, 80)
+    focused = _chain()
+    blurred = SensorChain(
+        camera=camera,
+        optics=Optics.for_preset("high_resolution", defocus_blur_diameter_m=300e-6),
+        detector=DetectorParameters(),
+        band_nm=BAND_NM,
+    )
+    assert focused.psf.shape == (15, 15)
+    # A 20-pixel disc fits inside the kernel with the diffraction margin kept.
+    assert blurred.psf.shape == (35, 35)
+    assert float(blurred.psf.sum()) == pytest.approx(1.0, abs=1e-6)
+    # The disc's light is spread: the centre holds about one disc pixel's share.
+    assert float(blurred.psf.max()) == pytest.approx(4 / (math.pi * 20**2), rel=0.1)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 from scipy.signal import convolve2d, fftconvolve
-from scipy.special import j0, j1
+from scipy.special import j0, j1, jv
 
 from satsight.errors import SatsightError
 from satsight.sensor.optics import (
@@ -22,6 +22,7 @@ from satsight.sensor.optics import (
     Optics,
     apply_optics,
     band_wavelengths_m,
+    defocus_mtf,
     diffraction_mtf,
     fft_convolve_same,
     focal_plane_irradiance_w_m2,
@@ -111,11 +112,23 @@ def test_optics_defaults_and_f_number():
         {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "obscuration_ratio": 1.0},
         {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "jitter_rms_rad": -1e-6},
         {"aperture_diameter_m": 3.0, "focal_length_m": 0.3},
+        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": -1e-6},
+        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": math.nan},
+        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": math.inf},
+        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": "far"},
     ],
 )
 def test_optics_rejects_bad_values(kwargs):
     with pytest.raises(SatsightError):
         Optics(**kwargs)
+
+
+@pytest.mark.parametrize("bad", [-1e-6, math.nan, math.inf, None])
+def test_defocus_rejects_bad_blur_diameters_with_a_hint(bad):
+    with pytest.raises(SatsightError, match=r"defocus_blur_diameter_m .* d = dz / N"):
+        Optics(0.3, 3.0, defocus_blur_diameter_m=bad)
+    with pytest.raises(SatsightError, match="blur_diameter_m"):
+        defocus_mtf(1e4, bad)
 
 
 # --- camera equation --------------------------------------------------------------------------
@@ -227,6 +240,46 @@ def test_system_mtf_is_band_averaged_product():
     np.testing.assert_allclose(system_mtf(f, optics, p, lam, w), one, rtol=REL, atol=1e-15)
 
 
+DEFOCUS_D_M = 90e-6  # blur-circle diameter: 6 pixels of 15 um
+
+
+def test_defocus_mtf_is_the_pillbox_transform_with_its_first_zero_and_negative_lobe():
+    d = DEFOCUS_D_M
+    first_zero = FIRST_ZERO_V / (math.pi * d)
+    assert defocus_mtf(0.0, d) == 1.0
+    assert defocus_mtf(first_zero, d) == pytest.approx(0.0, abs=1e-15)
+    assert defocus_mtf(0.999 * first_zero, d) > 0.0 > defocus_mtf(1.001 * first_zero, d)
+    np.testing.assert_array_equal(defocus_mtf(np.linspace(0.0, 1e6, 7), 0.0), 1.0)
+    # Signed OTF: the first negative lobe of 2 J1(u) / u reaches -0.1323 at u = 5.1356.
+    u = np.linspace(0.0, 20.0, 20001)
+    otf = defocus_mtf(u / (math.pi * d), d)
+    assert otf.min() == pytest.approx(-0.132279, abs=1e-6)
+    assert u[np.argmin(otf)] == pytest.approx(5.1356, abs=1e-3)
+    np.testing.assert_array_equal(defocus_mtf(-u / (math.pi * d), d), otf)  # even in f
+    # Independent oracle: the Hankel transform of the uniform disc of radius a = d / 2,
+    # OTF(f) = (2 / a^2) int_0^a J0(2 pi f r) r dr, by quadrature.
+    a = d / 2
+    for f in (0.3 * first_zero, first_zero, 1.7 * first_zero, 4.2 * first_zero):
+        hankel = integrate.quad(lambda r, f=f: j0(2 * math.pi * f * r) * r, 0.0, a, limit=200)[0]
+        assert defocus_mtf(f, d) == pytest.approx(2 * hankel / a**2, abs=1e-12)
+
+
+def test_system_mtf_includes_signed_defocus_and_d0_is_unchanged():
+    p = 15e-6
+    f = np.linspace(0.0, 1.0 / (2 * p), 50)
+    sharp = Optics(0.3, 3.0, jitter_rms_rad=1e-6)
+    lam = band_wavelengths_m()
+    diff = sum(diffraction_mtf(f, lk, 10.0) / lam.size for lk in lam)
+    product = diff * pixel_mtf(f, p) * jitter_mtf(f, 1e-6, 3.0)
+    zero = Optics(0.3, 3.0, jitter_rms_rad=1e-6, defocus_blur_diameter_m=0.0)
+    np.testing.assert_array_equal(system_mtf(f, zero, p), system_mtf(f, sharp, p))
+    np.testing.assert_array_equal(system_mtf(f, sharp, p), product)
+    blurred = Optics(0.3, 3.0, jitter_rms_rad=1e-6, defocus_blur_diameter_m=DEFOCUS_D_M)
+    got = system_mtf(f, blurred, p)
+    np.testing.assert_allclose(got, product * defocus_mtf(f, DEFOCUS_D_M), rtol=REL, atol=1e-15)
+    assert got.min() < -0.01  # the sign survives: frequencies past 3.83 / (pi d) reverse
+
+
 # --- PSF ---------------------------------------------------------------------------------------
 
 
@@ -311,6 +364,89 @@ def test_psf_jitter_adds_variance():
     assert gain == pytest.approx(optics.jitter_rms_m**2 + pitch**2 / 12, rel=5e-3)
 
 
+def _pillbox_alias_variance(d: float, terms: int = 100_000) -> float:
+    """Aliasing term of the per-axis second moment of a disc of diameter d (samples) that is
+    area-averaged over unit samples and summed at the sample centres.
+
+    By Poisson summation, sum_n n^2 b(n) = sum_k FT[x^2 b](k), b = marginal of the disc * unit
+    box; the k = 0 term is d^2 / 16 + 1 / 12, the others are (-1)^k (P(k) / k^2 - P'(k) / k)
+    / (2 pi^2) with P(nu) = 2 J1(pi d nu) / (pi d nu) and P' = -2 pi d J2(u) / u. The series
+    alternates; the mean of the last two partial sums converges far below 1e-9.
+    """
+    k = np.arange(1, terms + 1, dtype=np.float64)
+    u = math.pi * d * k
+    p, dp = 2 * j1(u) / u, -2 * math.pi * d * jv(2, u) / u
+    partial = np.cumsum((-1.0) ** k * (p / k**2 - dp / k) / (2 * math.pi**2))
+    return float(partial[-1] + partial[-2])  # 2 x (mean of the last two): both signs of k
+
+
+def test_psf_defocus_disc_adds_its_second_moment():
+    # A blur disc of d = 6 samples on an f/1 telescope at 550 nm (lambda N = 0.11 sample, so
+    # the diffraction core sits in one sample). Second moments add under convolution: the
+    # gain in <r^2> is the disc's d^2 / 8, plus 2 x 1 / 12 (the disc area-averaged over a
+    # sample, Sheppard) plus the aliasing of sampling that binned disc at the sample centres
+    # (Poisson summation, 2 x 0.0265 samples^2 here). Cut-off: the Airy wings hold
+    # 2 lambda N / (pi^2 r) of the power beyond r; the disc moves the part within d / 2 of
+    # the kernel edge R off the kernel, which changes <r^2> by at most
+    # R^2 (2 lambda N / pi^2) (1 / (R - d / 2) - 1 / R) = 0.079 samples^2 (1.7 %).
+    pitch, d_samples, size = 5e-6, 6.0, 41
+    lam_n = LAM_M * 1.0 / pitch  # lambda N in samples
+    sharp = Optics(aperture_diameter_m=1.0, focal_length_m=1.0)
+    blurred = Optics(1.0, 1.0, defocus_blur_diameter_m=d_samples * pitch)
+    y, x = np.indices((size, size)) - size // 2
+    r2 = x * x + y * y
+    k_sharp = psf_kernel(sharp, [LAM_M], None, pitch, size)
+    k_blur = psf_kernel(blurred, [LAM_M], None, pitch, size)
+    assert k_blur.sum() == pytest.approx(1.0, abs=1e-12)
+    assert np.all(k_blur >= 0.0)
+    np.testing.assert_allclose(k_blur, k_blur.T, atol=1e-15)
+    np.testing.assert_allclose(k_blur, k_blur[::-1, ::-1], atol=1e-15)
+    gain = float((k_blur * r2).sum() - (k_sharp * r2).sum())
+    alias = 2 * _pillbox_alias_variance(d_samples)
+    assert alias == pytest.approx(0.05296, abs=1e-4)
+    edge = size // 2
+    tol = edge**2 * (2 * lam_n / math.pi**2) * (1 / (edge - d_samples / 2) - 1 / edge)
+    assert tol < 0.08
+    assert gain == pytest.approx(d_samples**2 / 8 + 1 / 6 + alias, abs=tol)
+    # The uniform disc's own <r^2> = d^2 / 8 is what remains after the sampling terms.
+    assert gain - 1 / 6 - alias == pytest.approx(d_samples**2 / 8, rel=0.02)
+    # Inside the disc, away from its edge, the kernel is flat at 1 / (pi d^2 / 4) per sample.
+    inner = r2 <= 1
+    np.testing.assert_allclose(k_blur[inner], 4 / (math.pi * d_samples**2), rtol=0.01)
+
+
+def test_psf_defocus_zero_or_subsample_leaves_the_kernel_bit_identical():
+    lam = band_wavelengths_m((450.0, 900.0), 8)
+    base = psf_kernel(Optics(0.3, 3.0, jitter_rms_rad=0.5e-6), lam, None, 5e-6, 15)
+    for d in (0.0, 4e-6):  # a disc of d <= one sample lies inside the centre sample
+        o = Optics(0.3, 3.0, jitter_rms_rad=0.5e-6, defocus_blur_diameter_m=d)
+        assert psf_kernel(o, lam, None, 5e-6, 15).tobytes() == base.tobytes()
+
+
+def test_psf_defocus_kernel_otf_is_the_sampled_disc_transform():
+    # Along f_y = 0, FFT(defocused kernel) / FFT(focused kernel) is the transform of the disc
+    # area-averaged over a sample and sampled at the centres: the aliases
+    # sum_k P(f - k / p) sinc(p f - k) of the pillbox OTF P(f) = 2 J1(pi d f) / (pi d f)
+    # (Poisson summation), real and signed. What differs is the focused kernel's Airy wing
+    # that the disc pushes off the kernel: power (2 lambda N / pi^2)(1 / (R - d / 2) - 1 / R)
+    # for a half-width R (4e-5 here), counted twice as a bound on the ratio's error.
+    pitch, d_samples, size = 5e-6, 8.5, 101
+    d = d_samples * pitch
+    lam_n, edge = LAM_M * 1.0 / pitch, size // 2
+    sharp = psf_kernel(Optics(1.0, 1.0), [LAM_M], None, pitch, size)
+    blur = psf_kernel(Optics(1.0, 1.0, defocus_blur_diameter_m=d), [LAM_M], None, pitch, size)
+    f = np.fft.rfftfreq(size, d=pitch)  # up to the sampling Nyquist 1 / (2 p)
+    ratio = np.fft.rfft(blur.sum(axis=0)) / np.fft.rfft(sharp.sum(axis=0))
+    aliased = sum(
+        defocus_mtf(f - k / pitch, d) * np.sinc(f * pitch - k) for k in range(-2000, 2001)
+    )
+    tol = 2 * (2 * lam_n / math.pi**2) * (1 / (edge - d_samples / 2) - 1 / edge)
+    assert tol < 1e-4
+    np.testing.assert_allclose(ratio.real, aliased, rtol=0, atol=tol)
+    assert np.abs(ratio.imag).max() < 1e-12  # symmetric kernel: a real, signed OTF
+    assert ratio.real.min() < -0.05  # the contrast reversal past 3.83 / (pi d) is kept
+
+
 # --- apply_optics ------------------------------------------------------------------------------
 
 
@@ -383,6 +519,9 @@ def test_plot_system_mtf_writes_png(tmp_path):
     data = path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(data) > 10_000
+    defocused = Optics.for_preset("high_resolution", defocus_blur_diameter_m=DEFOCUS_D_M)
+    path = plot_system_mtf(defocused, 15e-6, (450.0, 900.0), tmp_path / "defocus.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def _textured_scene(shape: tuple[int, int], dtype: type) -> np.ndarray:

@@ -225,6 +225,38 @@ def test_psf_stamp_matches_pixel_integrated_airy():
     assert stamp[8, 8] == pytest.approx(binned[8, 8], rel=0.015)
 
 
+def test_defocused_star_stamp_spreads_its_light_over_the_blur_disc():
+    """A 6-pixel (90 um) geometric blur disc through the stamps' OTF: each stamp still sums to
+    1, the centre pixel falls from ~0.84 to about the pixel's share of the disc,
+    p^2 / (pi d^2 / 4) = 0.0354 (times the ~97 % of the light in the disc's core), and the
+    stamp agrees with the spatial-domain kernel (optics.psf_kernel, Airy averaged over 5 x 5
+    points in each of 9 x 9 sub-pixels, convolved with the area-averaged disc) to the ~1 % of
+    the wings that psf_kernel renormalises into its core."""
+    from satsight.sensor.optics import psf_kernel
+
+    d_m = 6 * PIXEL_M
+    sharp = Optics.for_preset("high_resolution")
+    optics = Optics.for_preset("high_resolution", defocus_blur_diameter_m=d_m)
+    t = np.array([5772.0, 5772.0])
+    focused = sf.psf_stamps(np.array([0.0, 0.3]), np.array([0.0, -0.2]), t, sharp, PIXEL_M, BAND)
+    stamps = sf.psf_stamps(np.array([0.0, 0.3]), np.array([0.0, -0.2]), t, optics, PIXEL_M, BAND)
+    np.testing.assert_allclose(stamps.sum(axis=(1, 2)), 1.0, rtol=0, atol=1e-12)
+    assert focused[0, 8, 8] > 0.8
+    share = PIXEL_M**2 / (math.pi * d_m**2 / 4)
+    assert 0.95 * share < stamps[0, 8, 8] < share
+    assert stamps[:, 8, 8].max() < 0.05 * focused[:, 8, 8].min()
+    # the sub-pixel shift still moves the light: first moment of the shifted stamp
+    y, x = np.mgrid[-8:9, -8:9]
+    assert (stamps[1] * x).sum() == pytest.approx(0.3, abs=0.02)
+    assert (stamps[1] * y).sum() == pytest.approx(-0.2, abs=0.02)
+    lam = band_wavelengths_m(BAND, 16)
+    w = lam**-4 / np.expm1(const.h * const.c / (lam * const.k * 5772.0))
+    kernel = psf_kernel(optics, lam, w, PIXEL_M / 9, 17 * 9, subsamples=5)
+    binned = kernel.reshape(17, 9, 17, 9).sum(axis=(1, 3))
+    core = np.s_[4:13, 4:13]
+    assert np.allclose(stamps[0][core], binned[core], rtol=0.015, atol=5e-4)
+
+
 def test_centroid_equals_position_for_a_well_sampled_symmetric_psf():
     """With 1 px rms jitter (OTF ~ 0 at 1/p) the first moment equals the sub-pixel position
     to < 0.01 px."""

@@ -28,6 +28,9 @@ class OpticsConfig(_Strict):
     transmission: float = Field(default=DEFAULT_TRANSMISSION, gt=0, le=1)
     obscuration_ratio: float = Field(default=0.0, ge=0, lt=1)
     jitter_rms_urad: float = Field(default=0.0, ge=0, le=1e4)
+    defocus_blur_um: float = Field(default=0.0, ge=0, le=1e4)
+    """Diameter of the geometric defocus blur circle in the focal plane (um); a focal-plane
+    shift dz at f-number N gives dz / N. 0 is a focused telescope."""
 
     def build(self, preset: str, focal_length_m: float) -> Optics:
         """The optics; the aperture defaults to the preset's assumed diameter."""
@@ -38,6 +41,7 @@ class OpticsConfig(_Strict):
             transmission=self.transmission,
             obscuration_ratio=self.obscuration_ratio,
             jitter_rms_rad=self.jitter_rms_urad * 1e-6,
+            defocus_blur_diameter_m=self.defocus_blur_um * 1e-6,
         )
 
 

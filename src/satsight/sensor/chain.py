@@ -25,6 +25,7 @@ as the equivalent irradiance at that same photon energy, so their count is exact
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,8 +56,15 @@ from satsight.sensor.optics import (
 
 #: Side of the PSF kernel applied to rendered frames, pixels (odd). At f/10 and 450-900 nm
 #: the Airy core is ~0.3-0.6 px in radius; 15 px holds all but ~1 % of the power (the
-#: kernel is renormalised, which puts the far wings back into it).
+#: kernel is renormalised, which puts the far wings back into it). A defocus blur disc
+#: widens it by its diameter (``psf_size_px``).
 PSF_SIZE_PX = 15
+
+
+def psf_size_px(optics: Optics, pixel_pitch_m: float) -> int:
+    """Side (odd, pixels) of the PSF kernel: ``PSF_SIZE_PX`` plus the defocus blur disc."""
+    blur_px = math.ceil(optics.defocus_blur_diameter_m / pixel_pitch_m)
+    return PSF_SIZE_PX + 2 * ((blur_px + 1) // 2)
 
 
 #: Largest number of target pixels the auto exposure takes its percentile over.
@@ -124,7 +132,11 @@ class SensorChain:
                 f"the camera's ({self.camera.pixel_pitch_m:g} m); build both from one config"
             )
         psf = psf_kernel(
-            self.optics, band_wavelengths_m((lo, hi)), None, self.camera.pixel_pitch_m, PSF_SIZE_PX
+            self.optics,
+            band_wavelengths_m((lo, hi)),
+            None,
+            self.camera.pixel_pitch_m,
+            psf_size_px(self.optics, self.camera.pixel_pitch_m),
         )
         blue, green, red = spectral_weights(np.linspace(lo, hi, 4), self.spectrum)
         object.__setattr__(self, "band_nm", (lo, hi))

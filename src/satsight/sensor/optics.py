@@ -441,6 +441,40 @@ def _gaussian_kernel_1d(sigma_samples: float, radius: int) -> np.ndarray:
     return k / k.sum()
 
 
+def _disc_quadrant_area(x: np.ndarray, y: np.ndarray, radius: float) -> np.ndarray:
+    """Area of the disc x'^2 + y'^2 <= radius^2 inside [0, x] x [0, y], for x, y >= 0.
+
+    G(x, y) = int_0^min(x, R) min(y, h(t)) dt with h(t) = sqrt(R^2 - t^2): y t up to
+    t_c = sqrt(R^2 - y^2), then H(t) = (t h(t) + R^2 asin(t / R)) / 2 (the area under the
+    circle) beyond it.
+    """
+    r2 = radius * radius
+    xr = np.minimum(x, radius)
+    xc = np.sqrt(np.maximum(r2 - y * y, 0.0))
+
+    def under_circle(t: np.ndarray) -> np.ndarray:
+        return 0.5 * (t * np.sqrt(np.maximum(r2 - t * t, 0.0)) + r2 * np.arcsin(t / radius))
+
+    return np.where(xr <= xc, y * xr, y * xc + under_circle(xr) - under_circle(np.minimum(xc, xr)))
+
+
+def _pillbox_kernel(diameter_samples: float, half_width: int) -> np.ndarray:
+    """Uniform disc of diameter d (in samples) averaged over each unit sample, (2 h + 1)^2.
+
+    Each value is the exact area of the disc inside that sample, over the disc's area pi d^2 / 4
+    (the signed quadrant areas F(x, y) = sgn x sgn y G(|x|, |y|) of the disc, differenced at
+    the sample's four corners), so the kernel sums to 1 when h >= d / 2 + 1/2 and loses the
+    part of the disc beyond the half-width h otherwise. A disc inside the centre sample
+    (d <= 1) gives the unit impulse.
+    """
+    radius = 0.5 * diameter_samples
+    edges = np.arange(-half_width, half_width + 2) - 0.5  # (2 h + 2,) sample edges
+    ex, ey = edges[None, :], edges[:, None]
+    corner = np.sign(ex) * np.sign(ey) * _disc_quadrant_area(np.abs(ex), np.abs(ey), radius)
+    area = corner[1:, 1:] - corner[1:, :-1] - corner[:-1, 1:] + corner[:-1, :-1]
+    return np.maximum(area, 0.0) / (math.pi * radius * radius)
+
+
 def psf_kernel(
     optics: Optics,
     wavelengths_m: Sequence[float] | np.ndarray | float,
@@ -459,8 +493,15 @@ def psf_kernel(
     (the power in the wings beyond the kernel, about 2 lambda N / (pi^2 R) for a kernel
     half-width R, is thereby put back into the kernel), and summed with ``weights``
     (normalised; uniform if None). Jitter is then applied as a convolution with a Gaussian of
-    per-axis std optics.jitter_rms_m, integrated over each sample. Size must be odd; the PSF
-    centre is the centre sample.
+    per-axis std optics.jitter_rms_m, integrated over each sample. With defocus
+    (optics.defocus_blur_diameter_m = d > 0) the kernel is convolved with the geometric blur
+    disc (a pillbox of diameter d, uniform; see :func:`defocus_mtf`), each of its samples
+    holding the exact area of the disc inside it (a disc of d <= one sample lies inside the
+    centre sample and leaves the kernel unchanged); the discrete convolution adds the disc's
+    variance d^2 / 16 per axis plus the sample's pitch^2 / 12 (binning). Power pushed off the
+    kernel is given back by the final normalisation, so size_px should exceed
+    d / sample_pitch_m by a few diffraction widths. Size must be odd; the PSF centre is the
+    centre sample.
     """
     if isinstance(size_px, bool) or int(size_px) != size_px or size_px < 1 or size_px % 2 == 0:
         raise SatsightError(
@@ -489,6 +530,13 @@ def psf_kernel(
         g = _gaussian_kernel_1d(sigma, radius)
         kernel = fftconvolve(kernel, g[:, None] * g[None, :], mode="same")
         kernel = np.maximum(kernel, 0.0)
+    blur_samples = optics.defocus_blur_diameter_m / pitch
+    if blur_samples > 1.0:
+        # Disc samples farther than 2 radius from the centre cannot carry kernel power back
+        # onto the kernel, so the disc is cut there.
+        half = min(math.ceil(0.5 * blur_samples + 0.5), 2 * radius)
+        disc = _pillbox_kernel(blur_samples, half)
+        kernel = np.maximum(fftconvolve(kernel, disc, mode="same"), 0.0)
     return kernel / kernel.sum()
 
 
@@ -678,7 +726,9 @@ def plot_system_mtf(
 
     The axis runs to 1.1 x the pixel Nyquist frequency 1 / (2 p), which is marked; the
     shortest-wavelength diffraction cut-off 1 / (lambda_min N) is marked when it is in range.
-    Returns the path written.
+    With defocus (optics.defocus_blur_diameter_m > 0) its signed geometric OTF is drawn too,
+    the system curve includes it (and is then the signed OTF) and the axis shows the negative
+    lobes. Returns the path written.
     """
     import matplotlib
 
@@ -696,20 +746,31 @@ def plot_system_mtf(
     )
     pix = pixel_mtf(f, p)
     jit = jitter_mtf(f, optics.jitter_rms_rad, optics.focal_length_m)
+    d = optics.defocus_blur_diameter_m
+    system = diff * pix * jit
+    if d > 0.0:
+        dfc = defocus_mtf(f, d)
+        system = system * dfc
     f_mm = f * 1e-3
     fig, ax = plt.subplots(figsize=(7, 4.5))
     try:
         ax.plot(f_mm, diff, label=f"diffraction (f/{optics.f_number:.3g}, band-averaged)")
         ax.plot(f_mm, pix, label=f"pixel ({p * 1e6:.3g} um, 100 % fill)")
         ax.plot(f_mm, jit, label=f"jitter ({optics.jitter_rms_rad * 1e6:.3g} urad RMS)")
-        ax.plot(f_mm, diff * pix * jit, "k", lw=2, label="system")
+        if d > 0.0:
+            ax.plot(f_mm, dfc, label=f"defocus ({d * 1e6:.3g} um blur disc, geometric OTF)")
+        ax.plot(f_mm, system, "k", lw=2, label="system")
         ax.axvline(nyquist * 1e-3, color="gray", ls="--", label="Nyquist 1/(2p)")
         if cutoff < 1.1 * nyquist:
             ax.axvline(cutoff * 1e-3, color="red", ls=":", label="diffraction cut-off")
         ax.set_xlim(0.0, 1.1 * nyquist * 1e-3)
-        ax.set_ylim(0.0, 1.02)
+        if d > 0.0:  # the defocus OTF is signed: show its negative lobes
+            ax.axhline(0.0, color="black", lw=0.5)
+            ax.set_ylim(min(0.0, float(dfc.min()), float(system.min())) - 0.02, 1.02)
+        else:
+            ax.set_ylim(0.0, 1.02)
         ax.set_xlabel("spatial frequency in the focal plane (cycles/mm)")
-        ax.set_ylabel("MTF")
+        ax.set_ylabel("MTF" if d == 0.0 else "MTF (signed OTF where negative)")
         ax.set_title(f"System MTF, {lo_nm:.0f}-{hi_nm:.0f} nm sub-band centres")
         ax.grid(alpha=0.3)
         ax.legend(loc="lower left", fontsize=8)

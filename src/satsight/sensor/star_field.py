@@ -37,7 +37,7 @@ from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import check_band_nm
 from satsight.sensor.detector import DetectorParameters
-from satsight.sensor.optics import Optics, band_wavelengths_m, diffraction_mtf
+from satsight.sensor.optics import Optics, band_wavelengths_m, defocus_mtf, diffraction_mtf
 from satsight.sensor.star_catalog import (
     SOLAR_TEMPERATURE_K,
     StarCatalog,
@@ -347,8 +347,10 @@ def _weighted_otf(
 
     Returns (otf (F, F), rows f_y and columns f_x in FFT order, freq (F,) cycles/m, s) with
     F = size * s: the diffraction OTF averaged over 16 sub-band centre wavelengths weighted
-    by the photon spectrum lambda B_lambda(T), times the pixel sinc(p f_x) sinc(p f_y) and
-    the jitter MTF exp(-2 pi^2 sigma^2 |f|^2).
+    by the photon spectrum lambda B_lambda(T), times the pixel sinc(p f_x) sinc(p f_y), the
+    jitter MTF exp(-2 pi^2 sigma^2 |f|^2) and, with defocus, the signed geometric defocus OTF
+    2 J1(pi d |f|) / (pi d |f|) (:func:`satsight.sensor.optics.defocus_mtf`). The product
+    still vanishes beyond the diffraction cut-off, so the grid cuts no frequency.
     """
     s = _oversampling(optics, pixel_pitch_m, band_nm)
     f = np.fft.fftfreq(size * s, d=pixel_pitch_m / s)
@@ -363,6 +365,8 @@ def _weighted_otf(
     pix = np.sinc(pixel_pitch_m * f)
     otf *= pix[:, None] * pix[None, :]
     otf *= np.exp(-2.0 * math.pi**2 * optics.jitter_rms_m**2 * rho**2)
+    if optics.defocus_blur_diameter_m > 0.0:
+        otf *= defocus_mtf(rho, optics.defocus_blur_diameter_m)
     otf.setflags(write=False)
     return otf, f, s
 
@@ -407,8 +411,9 @@ def psf_stamps(
     Method (exact up to the periodic wrap below): the pixel-integrated PSF sampled at pixel
     centres is the inverse Fourier transform of OTF(f) sinc(p f_x) sinc(p f_y) e^{-2 pi i f.x0}
     (Goodman, Introduction to Fourier Optics, Sec. 6.3; Holst, Ch. 10), OTF = mean
-    diffraction OTF x jitter MTF. It is evaluated on the frequency grid of an S*s-point
-    stamp with s odd and s / (2 p) above the diffraction cut-off (so no frequency is cut),
+    diffraction OTF x jitter MTF x geometric defocus OTF (signed; 1 without defocus). It is
+    evaluated on the frequency grid of an S*s-point stamp with s odd and s / (2 p) above the
+    diffraction cut-off (so no frequency is cut),
     multiplied by the sub-pixel phase ramp, folded onto the S x S grid (= sampling at the
     pixel centres, aliases included: the PSF is undersampled) and inverse-FFT'd. Sampling a
     period of S pixels wraps the PSF wings beyond the stamp back into it (at the opposite
