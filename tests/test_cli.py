@@ -21,6 +21,7 @@ from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
 from satsight.dataset.image_files import read_exr, read_png
 from satsight.dataset.labels import mask_bbox_xyxy_px
+from satsight.lighting.solar_spectrum import photon_weighted_wavelength_m
 from satsight.scene.loading import load_mesh
 
 FRAME_COUNT = 6
@@ -216,14 +217,21 @@ def _check_dn_image(
     sem = read_sigma_dn / math.sqrt(sky.size)
     assert abs(sky.mean() - bias) < 6 * sem + 0.01
     assert sky.std() == pytest.approx(read_sigma_dn, rel=0.02)
-    # The target, in closed form: electrons = QE E A t / (h c / lambda_eff), with
-    # E = pi L tau / (4 N^2) and L the band radiance (channel weights of the labels).
-    band_radiance = radiance.astype(np.float64) @ np.array(sensor["channel_weights_rgb"])
-    focal = np.pi * band_radiance * optics["transmission"] / (4.0 * sensor["f_number"] ** 2)
-    photon_energy_j = 6.62607015e-34 * 299792458.0 / sensor["effective_wavelength_m"]
+    # The target, in closed form: electrons = QE E_ph A t with E_ph = pi L_ph tau / (4 N^2)
+    # the focal-plane photon irradiance and L_ph the photon radiance of the three channels.
+    # Photons per channel: its power over h c / lambda_c, lambda_c the photon-weighted
+    # wavelength of its third of the band in the E-490 spectrum.
+    edges = np.linspace(*sensor["band_nm"], 4)
+    lambda_rgb_m = [photon_weighted_wavelength_m((edges[k], edges[k + 1])) for k in (2, 1, 0)]
+    photon_radiance = radiance.astype(np.float64) @ (
+        np.array(sensor["channel_weights_rgb"])
+        * np.array(lambda_rgb_m)
+        / (6.62607015e-34 * 299792458.0)
+    )  # photons s^-1 m^-2 sr^-1
+    focal = np.pi * photon_radiance * optics["transmission"] / (4.0 * sensor["f_number"] ** 2)
     expected_e = (
         detector["quantum_efficiency"] * focal * detector["pixel_pitch_m"] ** 2 * exposure_s
-    ) / photon_energy_j
+    )
     # Away from the target's edges and from saturated pixels, beyond the PSF's reach (it
     # moves light only locally) and the one pixel at the end of each blooming trail.
     saturated = dn >= 0.97 * (bias + detector["full_well_e"] / gain)

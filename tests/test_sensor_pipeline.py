@@ -18,9 +18,12 @@ import pytest
 import yaml
 
 from satsight.cli import main
-from satsight.config.scenario import parse_scenario
+from satsight.config.scenario import load_scenario, parse_scenario
 from satsight.dataset.image_files import read_png
-from satsight.pipeline import build_target, planned_frames
+from satsight.pipeline import build_sensor, build_target, expose_frame, planned_frames
+from satsight.render.buffers import RadianceImage
+from satsight.sensor.star_catalog import load_star_catalog
+from satsight.sensor.star_field import DEFAULT_STAMP_RADIUS_PX, stars_in_view
 
 SCENARIO = {
     "name": "stars-e2e",
@@ -112,10 +115,40 @@ def test_stars_appear_at_their_labelled_pixels_with_their_photon_count(dataset, 
     assert checked >= 3
 
 
-def test_stars_behind_the_target_are_hidden_and_counted(labels) -> None:
-    for frame in labels["frames"]:
-        assert frame["stars_hidden_by_target"] >= 0
-        assert frame["stars_hidden_by_earth_or_moon"] >= 0
+def test_star_labels_are_the_catalogue_stars_in_view_less_those_behind_the_target(
+    labels, dataset
+) -> None:
+    """Recompute each frame's stars without the target's mask: those whose centre falls on
+    the target are the ones counted as hidden by it, the rest are the labelled stars."""
+    scenario = load_scenario(dataset / "scenario.yaml")
+    sensor = build_sensor(scenario)
+    track, indices = planned_frames(scenario, build_target(scenario.target))
+    catalog = load_star_catalog(scenario.stars.v_mag_limit)
+    compared = 0
+    for frame, plan_index in zip(labels["frames"], indices, strict=True):
+        mask = read_png(dataset / frame["files"]["object_mask_png"]) > 0
+        stars = stars_in_view(
+            catalog,
+            track.R_cam_from_gcrs(plan_index),
+            sensor.camera,
+            track.epoch_utc[plan_index],
+            track.camera_velocity_gcrs_m_s[plan_index],
+            band_nm=sensor.band_nm,
+            margin_px=DEFAULT_STAMP_RADIUS_PX + 0.5,
+        )
+        x, y = np.rint(stars.x_px).astype(int), np.rint(stars.y_px).astype(int)
+        inside = (x >= 0) & (x < mask.shape[1]) & (y >= 0) & (y < mask.shape[0])
+        on_target = np.zeros(len(stars), dtype=bool)
+        on_target[inside] = mask[y[inside], x[inside]]
+        # Stars behind the Earth or the Moon are not in this unoccluded list either way.
+        assert frame["stars_hidden_by_target"] == int(on_target.sum())
+        visible_ids = set(stars.source_id[~on_target].tolist())
+        if frame["stars_hidden_by_earth_or_moon"] == 0:
+            assert {s["source_id"] for s in frame["stars"]} == visible_ids
+        compared += frame["stars_hidden_by_earth_or_moon"] == 0
+    assert compared >= 2
+    # One frame looks past the Earth: its stars are hidden by it.
+    assert sum(f["stars_hidden_by_earth_or_moon"] for f in labels["frames"]) > 0
 
 
 def test_no_star_is_drawn_on_the_target(dataset, labels) -> None:
@@ -127,11 +160,27 @@ def test_no_star_is_drawn_on_the_target(dataset, labels) -> None:
                 assert not mask[y, x]
 
 
-def test_views_given_in_the_body_frame_have_no_stars() -> None:
+def test_views_given_in_the_body_frame_get_no_stars() -> None:
     data = copy.deepcopy(SCENARIO)
     for key in ("epoch_utc", "orbit", "observer", "sampler", "visibility", "stars"):
         data.pop(key)
+    data["camera"]["width_px"] = data["camera"]["height_px"] = 32
     data["frames"] = [{"distance_km": 1.0, "azimuth_deg": 0.0, "elevation_deg": 0.0}]
     scenario = parse_scenario(data, "test")
-    track, _ = planned_frames(scenario, build_target(scenario.target))
+    mesh = build_target(scenario.target)
+    track, _ = planned_frames(scenario, mesh)
     assert not track.has_sky
+    sensor = build_sensor(scenario)
+    blank = RadianceImage(
+        radiance_w_m2_sr=np.zeros((32, 32, 3), np.float32),
+        depth_m=np.zeros((32, 32), np.float32),
+        part_id=np.zeros((32, 32), np.uint16),
+        normals_cam=np.zeros((32, 32, 3), np.float32),
+    )
+    dn_image, sensor_labels = expose_frame(
+        scenario, sensor, track, 0, blank, track.cam_from_body(0).apply(mesh.center_m)
+    )
+    assert sensor_labels["star_count"] == 0 and "stars" not in sensor_labels
+    # Nothing but the bias and the read noise on the frame.
+    noise_dn = sensor.detector.read_noise_e / sensor.detector.conversion_gain_e_per_dn
+    assert abs(float(dn_image.dn.mean()) - sensor.detector.bias_dn) < 5 * noise_dn / 32 + 0.1

@@ -41,7 +41,7 @@ from satsight.scene.loading import load_mesh
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.obj_export import write_obj
 from satsight.scene.procedural import generate_satellite
-from satsight.sensor.chain import DnImage, SensorChain
+from satsight.sensor.chain import DnImage, SensorChain, blur_radius_px
 
 CONVENTIONS = {
     "units": "SI; names carry non-SI units",
@@ -167,7 +167,18 @@ def add_frame_stars(
     if not (config.enabled and track.has_sky):
         return {"star_count": 0}
     from satsight.sensor.star_catalog import load_star_catalog
-    from satsight.sensor.star_field import star_photon_counts, star_photons_image, stars_in_view
+    from satsight.sensor.star_field import (
+        DEFAULT_STAMP_RADIUS_PX,
+        star_photon_counts,
+        star_photons_image,
+        stars_in_view,
+    )
+
+    # Stamps wide enough for the defocus disc and the jitter; stars are kept (and labelled)
+    # only when their stamp reaches the frame.
+    stamp_radius_px = DEFAULT_STAMP_RADIUS_PX + blur_radius_px(
+        sensor.optics, sensor.camera.pixel_pitch_m
+    )
 
     def sphere(direction: np.ndarray, distance_m: float, radius_m: float):
         return center_cam_m + direction * distance_m, radius_m
@@ -189,6 +200,7 @@ def add_frame_stars(
         occluding_spheres_cam=spheres,
         object_mask=object_mask,
         band_nm=sensor.band_nm,
+        margin_px=stamp_radius_px + 0.5,
     )
     star_photons_image(
         stars,
@@ -197,6 +209,7 @@ def add_frame_stars(
         sensor.camera.pixel_pitch_m,
         exposure_time_s,
         sensor.band_nm,
+        stamp_radius_px,
         out=irradiance_w_m2,
         scale=sensor.photons_to_irradiance_factor(exposure_time_s),
     )
@@ -252,6 +265,7 @@ def sensor_summary(sensor: SensorChain) -> dict:
         "band_nm": list(sensor.band_nm),
         "effective_wavelength_m": sensor.effective_wavelength_m,
         "channel_weights_rgb": sensor.channel_weights.tolist(),
+        "channel_photon_weights_rgb": sensor.channel_photon_weights.tolist(),
         "optics": dataclasses.asdict(sensor.optics),
         "f_number": sensor.optics.f_number,
         "detector": dataclasses.asdict(sensor.detector),
@@ -298,6 +312,10 @@ def run_scenario(
     track, indices = planned_frames(scenario, mesh)
     renderer = Renderer(mesh, scenario.render.settings(), scenario.render.variant)
     sensor = build_sensor(scenario)
+    if scenario.stars.enabled and track.has_sky:
+        from satsight.sensor.star_catalog import load_star_catalog
+
+        load_star_catalog(scenario.stars.v_mag_limit)  # fails here, before any rendering
     frames, thumbs, titles, render_seconds = [], [], [], []
     with (
         staged_folder(out_dir, overwrite) as root,

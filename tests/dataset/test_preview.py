@@ -13,6 +13,7 @@ from satsight.dataset.preview import (
     dn_preview_uint8,
     thumbnail,
 )
+from satsight.errors import SatsightError
 
 
 @pytest.fixture
@@ -45,7 +46,7 @@ def test_preview_is_monotonic_in_dn(rng) -> None:
 
 
 def test_preview_needs_full_well_above_bias() -> None:
-    with pytest.raises(ValueError, match="must exceed bias_dn"):
+    with pytest.raises(SatsightError, match="must exceed bias_dn"):
         dn_preview_uint8(np.zeros((2, 2), np.uint16), 1000.0, 1000.0)
 
 

@@ -10,7 +10,7 @@ import pytest
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.sensor import ExposureConfig
 from satsight.errors import SatsightError
-from satsight.lighting.solar_spectrum import band_irradiance_w_m2
+from satsight.lighting.solar_spectrum import band_irradiance_w_m2, load_e490
 from satsight.render.buffers import RadianceImage
 from satsight.sensor.chain import SensorChain
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
@@ -176,3 +176,49 @@ def test_psf_kernel_grows_with_the_defocus_blur_disc() -> None:
     assert float(blurred.psf.sum()) == pytest.approx(1.0, abs=1e-6)
     # The disc's light is spread: the centre holds about one disc pixel's share.
     assert float(blurred.psf.max()) == pytest.approx(4 / (math.pi * 20**2), rel=0.1)
+
+
+@pytest.mark.parametrize("channel", [0, 1, 2], ids=["red", "green", "blue"])
+def test_a_coloured_patch_counts_the_photons_of_its_own_third(channel) -> None:
+    """Light in one channel only: its photons are its in-band power over h c / lambda_c,
+    lambda_c the photon-weighted wavelength of that third of the band (not of the whole
+    band, which would miscount red light by +27 % and blue light by -19 %)."""
+    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002))
+    radiance = np.zeros((80, 96, 3), np.float32)
+    radiance[20:60, 20:76, channel] = 40.0
+    irradiance = chain.focal_plane_irradiance_w_m2(_image(radiance))
+    lo, hi = {0: (750.0, 900.0), 1: (600.0, 750.0), 2: (450.0, 600.0)}[channel]
+    third = band_irradiance_w_m2((lo, hi))
+    whole = band_irradiance_w_m2(BAND_NM)
+    # Independent: the third's photon-weighted wavelength by quadrature of the E-490 table.
+    wavelength_m, spectral = load_e490()
+    inside = (wavelength_m >= lo * 1e-9) & (wavelength_m <= hi * 1e-9)
+    lam_m = np.trapezoid(spectral[inside] * wavelength_m[inside], wavelength_m[inside]) / (
+        np.trapezoid(spectral[inside], wavelength_m[inside])
+    )
+    optics, d = chain.optics, chain.detector
+    power_w_m2 = (third / whole) * 40.0 * math.pi * optics.transmission / (4 * optics.f_number**2)
+    photons = power_w_m2 * lam_m / (H_PLANCK_J_S * C_M_S) * d.pixel_area_m2 * 0.002
+    got = photons_per_pixel(irradiance, d.pixel_area_m2, 0.002, chain.photon_energy_j)
+    # Inside the patch, away from its edges (the PSF); 1e-3: the table's sampling.
+    np.testing.assert_allclose(got[30:50, 30:66], photons, rtol=1e-3)
+
+
+def test_light_outside_the_object_mask_is_kept() -> None:
+    """With supersampling a pixel whose centre misses the target still carries light; a
+    target smaller than a pixel may leave the mask empty. Its light must reach the detector."""
+    chain = _chain()
+    radiance = np.zeros((80, 96, 3), np.float32)
+    radiance[40, 50] = 70.0  # no surface at any pixel centre: depth 0, part 0
+    image = RadianceImage(
+        radiance_w_m2_sr=radiance,
+        depth_m=np.zeros((80, 96), np.float32),
+        part_id=np.zeros((80, 96), np.uint16),
+        normals_cam=np.zeros((80, 96, 3), np.float32),
+    )
+    assert not image.object_mask.any()
+    irradiance = chain.focal_plane_irradiance_w_m2(image)
+    optics = chain.optics
+    expected = 70.0 * math.pi * optics.transmission / (4 * optics.f_number**2)
+    # The PSF spreads it; the sum over the frame keeps it (far from the edges).
+    assert float(irradiance.sum()) == pytest.approx(expected, rel=1e-5)

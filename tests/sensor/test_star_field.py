@@ -81,7 +81,8 @@ def astropy_pixels(catalog, source_ids, R, camera, epoch_utc, r_m, v_m_s):
 )
 def test_positions_match_astropy(catalog, camera, target_hip, min_stars):
     """Pixel positions agree with astropy (apply_space_motion, then GCRS with the observer's
-    geocentric position and velocity: aberration and solar light deflection) to < 0.05 px."""
+    geocentric position and velocity: aberration and solar light deflection) to < 0.02 px
+    (measured 0.0016 px wide field, 0.0077 px high resolution)."""
     t = parse_epoch_utc(EPOCH)
     if target_hip is None:
         boresight = unit_vectors(np.radians(305.0), np.radians(40.0))
@@ -99,7 +100,7 @@ def test_positions_match_astropy(catalog, camera, target_hip, min_stars):
     ref = astropy_pixels(catalog, stars.source_id, R, camera, EPOCH, R_SAT_M, V_SAT_M_S)
     dev = np.hypot(stars.x_px - ref[:, 0], stars.y_px - ref[:, 1])
     print(f"{camera.focal_length_m} m: {len(stars)} stars, max deviation {dev.max():.4f} px")
-    assert dev.max() < 0.05
+    assert dev.max() < 0.02
 
 
 def test_proper_motion_moves_61_cyg_by_the_right_amount(catalog):

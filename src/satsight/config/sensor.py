@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from satsight.sensor.detector import DetectorParameters
 from satsight.sensor.optics import DEFAULT_APERTURE_DIAMETER_M, DEFAULT_TRANSMISSION, Optics
+from satsight.sensor.star_catalog import MAX_V_MAG_LIMIT
 
 _DETECTOR = DetectorParameters()
 
@@ -98,10 +99,10 @@ class ExposureConfig(_Strict):
 
 class StarsConfig(_Strict):
     """The star field behind the target (frames planned from orbits only: it needs the
-    camera's inertial attitude and the epoch)."""
+    camera's inertial attitude and the epoch). The catalogue holds stars to V 9.95."""
 
     enabled: bool = True
-    v_mag_limit: float = Field(default=9.5, ge=-2, le=10)
+    v_mag_limit: float = Field(default=9.5, ge=-2, le=MAX_V_MAG_LIMIT)
     earth_atmosphere_margin_km: float = Field(default=100.0, ge=0, le=1000)
 
     @model_validator(mode="after")

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from satsight.errors import SatsightError
+
 # Display stretch of the contact sheet: value = (L / L_max) ** (1 / 2.2).
 PREVIEW_GAMMA = 2.2
 
@@ -25,7 +27,10 @@ def dn_preview_uint8(dn: np.ndarray, bias_dn: float, full_well_dn: float) -> np.
     """
     span = float(full_well_dn) - float(bias_dn)
     if span <= 0:
-        raise ValueError(f"full_well_dn ({full_well_dn}) must exceed bias_dn ({bias_dn})")
+        raise SatsightError(
+            f"full_well_dn ({full_well_dn}) must exceed bias_dn ({bias_dn}); check the "
+            "detector's full well, gain and bias"
+        )
     lut = np.arange(65536, dtype=np.float64)
     lut = np.clip((lut - float(bias_dn)) / span, 0.0, 1.0) ** (1.0 / PREVIEW_GAMMA)
     lut = np.rint(255.0 * lut).astype(np.uint8)

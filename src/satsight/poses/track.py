@@ -205,4 +205,7 @@ class PoseTrack:
             "sun_excluded": bool(self.sun_excluded[i]),
             "phase_rejected": bool(self.phase_rejected[i]),
             "visible": bool(self.visible[i]),
+            "q_cam_from_gcrs": vector(self.q_cam_from_gcrs[i]),
+            "camera_position_gcrs_m": vector(self.camera_position_gcrs_m[i]),
+            "camera_velocity_gcrs_m_s": vector(self.camera_velocity_gcrs_m_s[i]),
         }

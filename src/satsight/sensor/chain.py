@@ -5,7 +5,8 @@ reflected with that channel's reflectance, docs/design.md "Radiometry and units"
 detector is panchromatic over the band, so the channels are first combined into one in-band
 radiance with the weights of the band's three equal sub-bands in the solar spectrum (blue:
 short third, green: middle, red: long), the reading in which each channel's reflectance
-holds over its third of the band. Then, in the detector's physical order:
+holds over its third of the band; each third's photons are counted at its own
+photon-weighted wavelength. Then, in the detector's physical order:
 
 1. optics: the camera equation E = pi L tau (1 - eps^2) / (4 N^2), then the polychromatic
    PSF (diffraction of the obscured aperture over the band, jitter), convolved where there
@@ -17,10 +18,13 @@ holds over its third of the band. Then, in the detector's physical order:
 4. detector: photons, QE, fixed pattern, dark current, shot noise, full well and blooming,
    read noise, gain, bias and ADC (``satsight.sensor.detector``).
 
-Reflected sunlight keeps the Sun's spectrum (grey materials), so the mean photon energy of
-the scene is h c / lambda_eff with lambda_eff the solar photon-weighted wavelength in the
-band. Star photons are counted per star from its own spectrum and handed to the detector
-as the equivalent irradiance at that same photon energy, so their count is exact.
+Reflected sunlight keeps the Sun's spectrum within each channel's third of the band
+(materials are grey there), so each channel's photons are its power over h c / lambda_c,
+lambda_c the solar photon-weighted wavelength of its third. The detector counts photons at
+one energy, h c / lambda_eff (lambda_eff of the whole band), so each channel's power is
+weighted by lambda_c / lambda_eff first: the irradiance handed to the detector is
+"photon-equivalent", equal to the true power for grey surfaces. Star photons are counted per
+star from its own spectrum and handed to the detector the same way, so their count is exact.
 """
 
 from __future__ import annotations
@@ -61,10 +65,16 @@ from satsight.sensor.optics import (
 PSF_SIZE_PX = 15
 
 
+def blur_radius_px(optics: Optics, pixel_pitch_m: float) -> int:
+    """Pixels the defocus disc (its radius) and the jitter (4 sigma) add to a PSF's reach."""
+    radius_m = 0.5 * optics.defocus_blur_diameter_m + 4.0 * optics.jitter_rms_m
+    return math.ceil(radius_m / pixel_pitch_m)
+
+
 def psf_size_px(optics: Optics, pixel_pitch_m: float) -> int:
-    """Side (odd, pixels) of the PSF kernel: ``PSF_SIZE_PX`` plus the defocus blur disc."""
-    blur_px = math.ceil(optics.defocus_blur_diameter_m / pixel_pitch_m)
-    return PSF_SIZE_PX + 2 * ((blur_px + 1) // 2)
+    """Side (odd, pixels) of the PSF kernel: ``PSF_SIZE_PX`` widened by the defocus disc and
+    the jitter, so that neither is cut off."""
+    return PSF_SIZE_PX + 2 * blur_radius_px(optics, pixel_pitch_m)
 
 
 #: Largest number of target pixels the auto exposure takes its percentile over.
@@ -117,6 +127,7 @@ class SensorChain:
     camera_seed: int = 0
     psf: np.ndarray = field(init=False, repr=False)
     channel_weights: np.ndarray = field(init=False, repr=False)
+    channel_photon_weights: np.ndarray = field(init=False, repr=False)
     effective_wavelength_m: float = field(init=False)
 
     def __post_init__(self) -> None:
@@ -138,13 +149,21 @@ class SensorChain:
             self.camera.pixel_pitch_m,
             psf_size_px(self.optics, self.camera.pixel_pitch_m),
         )
-        blue, green, red = spectral_weights(np.linspace(lo, hi, 4), self.spectrum)
+        edges = np.linspace(lo, hi, 4)
+        blue, green, red = spectral_weights(edges, self.spectrum)
+        lam_eff = photon_weighted_wavelength_m((lo, hi), self.spectrum)
+        lam_rgb = [
+            photon_weighted_wavelength_m((float(a), float(b)), self.spectrum)
+            for a, b in zip(edges[2::-1], edges[3:0:-1], strict=True)
+        ]
+        power = np.array([red, green, blue])
         object.__setattr__(self, "band_nm", (lo, hi))
         object.__setattr__(self, "psf", psf.astype(np.float32))
-        object.__setattr__(self, "channel_weights", np.array([red, green, blue], np.float32))
+        object.__setattr__(self, "channel_weights", power.astype(np.float32))
         object.__setattr__(
-            self, "effective_wavelength_m", photon_weighted_wavelength_m((lo, hi), self.spectrum)
+            self, "channel_photon_weights", (power * np.array(lam_rgb) / lam_eff).astype(np.float32)
         )
+        object.__setattr__(self, "effective_wavelength_m", lam_eff)
 
     @property
     def photon_energy_j(self) -> float:
@@ -161,26 +180,32 @@ class SensorChain:
         return radiance @ self.channel_weights
 
     def focal_plane_irradiance_w_m2(self, image: RadianceImage) -> np.ndarray:
-        """(H, W) float32 in-band irradiance on the detector from the rendered scene, after
-        the camera equation and the PSF (W m^-2, pixel-averaged).
+        """(H, W) float32 photon-equivalent in-band irradiance on the detector from the
+        rendered scene, after the camera equation and the PSF (W m^-2, pixel-averaged).
 
-        Only the target's bounding box carries light (the renderer's background is 0), so
-        the channels are combined there only, with the camera equation folded into the
-        channel weights: E = sum_c w_c L_c pi tau (1 - eps^2) / (4 N^2).
+        "Photon-equivalent": each channel's power is weighted by its photons, lambda_c /
+        lambda_eff, so the detector's single photon energy h c / lambda_eff counts every
+        channel's photons right (exact power for grey surfaces, whose weights sum to 1).
+        Only the bounding box of the non-zero radiance is combined (the renderer's
+        background is 0; with supersampling, edge pixels whose centre misses the target
+        still carry light), with the camera equation folded into the channel weights:
+        E = sum_c w_c (lambda_c / lambda_eff) L_c pi tau (1 - eps^2) / (4 N^2).
         """
         radiance = image.radiance_w_m2_sr
         if radiance.ndim != 3 or radiance.shape[2] != 3:
             raise SatsightError(
                 f"radiance must be (H, W, 3) W m^-2 sr^-1, got shape {radiance.shape}"
             )
-        focal = np.zeros(image.shape, dtype=np.float32)
-        rows = np.flatnonzero(image.object_mask.any(axis=1))
+        h, w = radiance.shape[:2]
+        focal = np.zeros((h, w), dtype=np.float32)
+        rows = np.flatnonzero(radiance.reshape(h, -1).max(axis=1, initial=0.0) > 0)
         if rows.size == 0:
             return focal
-        cols = np.flatnonzero(image.object_mask[rows[0] : rows[-1] + 1].any(axis=0))
+        band = radiance[rows[0] : rows[-1] + 1]
+        cols = np.flatnonzero(band.max(axis=(0, 2), initial=0.0) > 0)
         box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
         factor = float(focal_plane_irradiance_w_m2(1.0, self.optics))
-        weights = (self.channel_weights * np.float32(factor)).astype(np.float32)
+        weights = (self.channel_photon_weights * np.float32(factor)).astype(np.float32)
         np.matmul(radiance[box].astype(np.float32, copy=False), weights, out=focal[box])
         return apply_optics(focal, self.psf)
 
