@@ -573,3 +573,18 @@ def test_fft_convolve_same_matches_direct_convolution():
         convolve2d(small, big_kernel, mode="same"),
         rtol=1e-10,
     )
+
+
+def test_apply_optics_with_a_known_signal_box_equals_the_scanned_result() -> None:
+    psf = psf_kernel(Optics.for_preset("high_resolution"), band_wavelengths_m(), None, 15e-6, 15)
+    image = np.zeros((60, 70), np.float32)
+    image[20:31, 25:41] = np.random.default_rng(3).uniform(0.1, 1.0, (11, 16))
+    scanned = apply_optics(image, psf)
+    boxed = apply_optics(image, psf, signal_box=(20, 31, 25, 41))
+    np.testing.assert_array_equal(boxed, scanned)
+    # A larger box (still holding all the signal) gives the same image to round-off.
+    np.testing.assert_allclose(
+        apply_optics(image, psf, signal_box=(5, 50, 10, 60)), scanned, atol=1e-6 * scanned.max()
+    )
+    with pytest.raises(SatsightError, match="signal_box"):
+        apply_optics(image, psf, signal_box=(30, 20, 0, 10))

@@ -202,12 +202,14 @@ class SensorChain:
         if rows.size == 0:
             return focal
         band = radiance[rows[0] : rows[-1] + 1]
-        cols = np.flatnonzero(band.max(axis=(0, 2), initial=0.0) > 0)
+        # Column maxima over the rows first (a contiguous reduction), then over channels.
+        cols = np.flatnonzero(band.max(axis=0).max(axis=1) > 0)
         box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
         factor = float(focal_plane_irradiance_w_m2(1.0, self.optics))
         weights = (self.channel_photon_weights * np.float32(factor)).astype(np.float32)
         np.matmul(radiance[box].astype(np.float32, copy=False), weights, out=focal[box])
-        return apply_optics(focal, self.psf)
+        signal_box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+        return apply_optics(focal, self.psf, signal_box=signal_box)
 
     def exposure_time_s(self, irradiance_w_m2: np.ndarray, object_mask: np.ndarray) -> float:
         """The frame's exposure time under the exposure rule (s).
