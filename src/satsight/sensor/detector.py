@@ -42,11 +42,8 @@ Teledyne e2v); values not on the datasheet are marked "assumption".
 from __future__ import annotations
 
 import math
-import os
 import threading
 from collections import OrderedDict
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +51,7 @@ import scipy.constants as const
 
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import check_band_nm
+from satsight.sensor.threads import check_threads, run_jobs
 
 #: Planck constant h (J s), CODATA 2018 exact value (scipy.constants).
 PLANCK_J_S: float = const.h
@@ -294,31 +292,10 @@ def _check_rng(rng: object) -> np.random.Generator:
     return rng
 
 
-def _check_threads(threads: int | None) -> int:
-    if threads is None:
-        try:
-            return max(1, len(os.sched_getaffinity(0)))
-        except AttributeError:  # not on Linux
-            return max(1, os.cpu_count() or 1)
-    if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
-        raise SatsightError(
-            f"threads must be a whole number >= 1 or None (all cores), got {threads!r}"
-        )
-    return int(threads)
-
-
 def _row_bands(height: int, width: int) -> list[tuple[int, int]]:
     """Row ranges [r0, r1) of about BAND_PIXELS pixels each; a function of the size only."""
     rows = max(1, BAND_PIXELS // max(width, 1))
     return [(r0, min(r0 + rows, height)) for r0 in range(0, height, rows)]
-
-
-def _run_bands(job: Callable[[int], object], count: int, threads: int) -> list:
-    """job(0), ..., job(count - 1), on ``threads`` threads; results in band order."""
-    if threads == 1 or count == 1:
-        return [job(i) for i in range(count)]
-    with ThreadPoolExecutor(max_workers=min(threads, count)) as pool:
-        return list(pool.map(job, range(count)))
 
 
 def _standard_normal_f32(gen: np.random.Generator, out: np.ndarray) -> np.ndarray:
@@ -495,7 +472,7 @@ def _camera_maps(
         if key in _CAMERA_MAPS:
             _CAMERA_MAPS.move_to_end(key)
             return _CAMERA_MAPS[key]
-        maps = _draw_camera_maps(*key, _check_threads(threads))
+        maps = _draw_camera_maps(*key, check_threads(threads))
         _CAMERA_MAPS[key] = maps
         while len(_CAMERA_MAPS) > _CAMERA_MAPS_KEPT:
             _CAMERA_MAPS.popitem(last=False)
@@ -524,7 +501,7 @@ def _draw_camera_maps(
             band += np.float32(1.0)
             np.maximum(band, np.float32(0.0), out=band)
 
-        _run_bands(draw_prnu, len(bands), threads)
+        run_jobs(draw_prnu, len(bands), threads)
         prnu.setflags(write=False)
     if dsnu_e_per_s > 0:
         # Lognormal with mean D and rms s: sigma_ln^2 = ln(1 + (s / D)^2), mu_ln = ln D -
@@ -541,7 +518,7 @@ def _draw_camera_maps(
             band += np.float32(math.log(mean) - 0.5 * sigma_ln**2)
             np.exp(band, out=band)
 
-        _run_bands(draw_dark, len(bands), threads)
+        run_jobs(draw_dark, len(bands), threads)
         dark.setflags(write=False)
     return prnu, dark
 
@@ -621,7 +598,7 @@ def shot_noise_electrons(
     change the result.
     """
     rng = _check_rng(rng)
-    n_threads = _check_threads(threads)
+    n_threads = check_threads(threads)
     mean = _check_nonnegative_image("mean_electrons_e", mean_electrons_e, "e-")
     try:
         normal_min_mean_e = float(normal_min_mean_e)
@@ -652,7 +629,7 @@ def shot_noise_electrons(
             flat_mean[a:b], np.random.default_rng(seeds[i]), flat_out[a:b], normal_min_mean_e
         )
 
-    _run_bands(job, len(bands), n_threads)
+    run_jobs(job, len(bands), n_threads)
     return out
 
 
@@ -800,7 +777,7 @@ def read_out_dn(
     the result.
     """
     rng = _check_rng(rng)
-    n_threads = _check_threads(threads)
+    n_threads = check_threads(threads)
     e = np.asarray(electrons_e)
     if not np.issubdtype(e.dtype, np.floating):
         e = e.astype(np.float64)
@@ -813,7 +790,7 @@ def read_out_dn(
         r0, r1 = bands[i]
         _read_out_band(e[r0:r1], params, np.random.default_rng(seeds[i]), dn[r0:r1])
 
-    _run_bands(job, len(bands), n_threads)
+    run_jobs(job, len(bands), n_threads)
     return dn
 
 
@@ -908,7 +885,7 @@ def simulate_detector(
     frame (its fixed-pattern maps); ``benchmarks/sensor_bench.py`` measures it.
     """
     rng = _check_rng(rng)
-    n_threads = _check_threads(threads)
+    n_threads = check_threads(threads)
     irradiance = _check_irradiance(irradiance_w_m2)
     t = _check_exposure_s(exposure_time_s)
     photon_energy_j = mean_photon_energy_j(band_nm, effective_wavelength_m)
@@ -956,7 +933,7 @@ def simulate_detector(
         _read_out_band(band_e, params, np.random.default_rng(read_seeds[i]), dn[r0:r1])
         return None
 
-    waiting = _run_bands(expose, len(bands), n_threads)
+    waiting = run_jobs(expose, len(bands), n_threads)
     if any(cols is not None for cols in waiting):
         redo = np.array([cols is not None for cols in waiting])
         changed_rows = np.zeros(h, dtype=bool)
@@ -978,7 +955,7 @@ def simulate_detector(
             _read_out_band(electrons[r0:r1], params, gen, dn[r0:r1])
 
         again = np.flatnonzero(redo)
-        _run_bands(lambda k: read_again(int(again[k])), again.size, n_threads)
+        run_jobs(lambda k: read_again(int(again[k])), again.size, n_threads)
     return dn
 
 

@@ -41,9 +41,7 @@ Physics and sources:
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,6 +51,7 @@ from scipy.signal import fftconvolve
 from scipy.special import erf, j1
 
 from satsight.errors import SatsightError
+from satsight.sensor.threads import check_threads, run_jobs
 
 DEFAULT_TRANSMISSION = 0.8
 """Band-averaged optical transmission (assumption; the paper gives none)."""
@@ -582,7 +581,7 @@ def apply_optics(
         )
     if isinstance(supersampling, bool) or int(supersampling) != supersampling or supersampling < 1:
         raise SatsightError(f"supersampling must be a positive integer; got {supersampling!r}")
-    n_threads = _check_threads(threads)
+    n_threads = check_threads(threads)
     s = int(supersampling)
     hs, ws = img.shape
     if hs % s or ws % s:
@@ -659,7 +658,7 @@ def fft_convolve_same(
         raise SatsightError(
             f"image and kernel must be non-empty 2-D arrays; got {img.shape} and {kern.shape}"
         )
-    n_threads = _check_threads(threads)
+    n_threads = check_threads(threads)
     complex_dtype = np.complex64 if real is np.float32 else np.complex128
     h, w = img.shape
     ky, kx = kern.shape
@@ -696,33 +695,10 @@ def fft_convolve_same(
         else:
             sink(a, rows)
 
-    _run_jobs(forward, len(row_bands), n_threads)
-    _run_jobs(columns, len(col_bands), n_threads)
-    _run_jobs(inverse, len(row_bands), n_threads)
+    run_jobs(forward, len(row_bands), n_threads)
+    run_jobs(columns, len(col_bands), n_threads)
+    run_jobs(inverse, len(row_bands), n_threads)
     return result
-
-
-def _check_threads(threads: int | None) -> int:
-    if threads is None:
-        try:
-            return max(1, len(os.sched_getaffinity(0)))
-        except AttributeError:  # not on Linux
-            return max(1, os.cpu_count() or 1)
-    if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
-        raise SatsightError(
-            f"threads must be a whole number >= 1 or None (all cores), got {threads!r}"
-        )
-    return int(threads)
-
-
-def _run_jobs(job: Callable[[int], None], count: int, threads: int) -> None:
-    """job(0), ..., job(count - 1) on ``threads`` threads (scipy.fft releases the GIL)."""
-    if threads == 1 or count == 1:
-        for i in range(count):
-            job(i)
-        return
-    with ThreadPoolExecutor(max_workers=min(threads, count)) as pool:
-        list(pool.map(job, range(count)))
 
 
 # --- plot ------------------------------------------------------------------------------------

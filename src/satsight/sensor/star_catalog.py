@@ -172,6 +172,20 @@ _PANEL_WIDTH_NM = 100.0
 # --- the catalogue ---------------------------------------------------------------------------
 
 
+_STAR_FIELDS = (
+    "source_id",
+    "hip_id",
+    "ra_rad",
+    "dec_rad",
+    "pm_ra_cosdec_rad_per_yr",
+    "pm_dec_rad_per_yr",
+    "has_proper_motion",
+    "v_mag",
+    "b_minus_v",
+    "temperature_k",
+)
+
+
 @dataclass(frozen=True, eq=False)
 class StarCatalog:
     """Stars of the celestial sphere, (N,) arrays sorted by V magnitude (brightest first).
@@ -204,6 +218,10 @@ class StarCatalog:
 
     def __len__(self) -> int:
         return int(self.source_id.shape[0])
+
+    def take(self, index: np.ndarray | slice) -> StarCatalog:
+        """The stars ``index`` (integer indices, a boolean mask or a slice), as a catalogue."""
+        return replace(self, **{name: getattr(self, name)[index] for name in _STAR_FIELDS})
 
 
 # --- data files ------------------------------------------------------------------------------
@@ -673,22 +691,7 @@ def load_star_catalog(v_mag_limit: float = 9.5) -> StarCatalog:
         )
     full = _full_catalog()
     n = int(np.searchsorted(full.v_mag, limit, side="right"))
-    cut = {
-        name: getattr(full, name)[:n]
-        for name in (
-            "source_id",
-            "hip_id",
-            "ra_rad",
-            "dec_rad",
-            "pm_ra_cosdec_rad_per_yr",
-            "pm_dec_rad_per_yr",
-            "has_proper_motion",
-            "v_mag",
-            "b_minus_v",
-            "temperature_k",
-        )
-    }
-    return replace(full, **cut, v_mag_limit=limit, provenance=dict(full.provenance))
+    return replace(full.take(slice(0, n)), v_mag_limit=limit, provenance=dict(full.provenance))
 
 
 # --- photometry ------------------------------------------------------------------------------

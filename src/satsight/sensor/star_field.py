@@ -25,7 +25,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.constants as const
@@ -276,19 +276,7 @@ def stars_in_view(
 
 def _subset(catalog: StarCatalog, index: np.ndarray) -> StarCatalog:
     """The stars ``index`` of a catalogue, as a catalogue."""
-    names = (
-        "source_id",
-        "hip_id",
-        "ra_rad",
-        "dec_rad",
-        "pm_ra_cosdec_rad_per_yr",
-        "pm_dec_rad_per_yr",
-        "has_proper_motion",
-        "v_mag",
-        "b_minus_v",
-        "temperature_k",
-    )
-    return replace(catalog, **{n: getattr(catalog, n)[index] for n in names})
+    return catalog.take(index)
 
 
 # --- photons on the focal plane --------------------------------------------------------------
