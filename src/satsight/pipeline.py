@@ -1,36 +1,26 @@
-"""One scenario end to end: target -> poses -> render -> labels -> files.
+"""One frame end to end: target -> pose -> light -> render -> labels -> sensor -> DN.
 
-``run_scenario`` is what ``satsight generate`` and ``satsight demo`` call; the CLI is a thin
-shell over it.
+``FrameEngine`` holds what every frame of a scenario shares (mesh, plan, renderer and its
+compiled kernels, sensor) and makes one frame's record and arrays; ``satsight.generation``
+runs it over a dataset and writes the files.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
-import time
-from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-import yaml
 
 from satsight import __version__
 from satsight.config.scenario import Scenario, TargetConfig
-from satsight.dataset.labels import frame_labels
-from satsight.dataset.preview import (
-    DN_PREVIEW_STRETCH,
-    crop_box_xyxy_px,
-    thumbnail,
-    write_contact_sheet,
-)
-from satsight.dataset.staging import check_output_folder, staged_folder
-from satsight.dataset.writer import LABELS_FORMAT, write_frame, write_labels
+from satsight.dataset.frame_files import FrameArrays
+from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
+from satsight.dataset.preview import DN_PREVIEW_STRETCH
 from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.sun_moon import AU_M
 from satsight.errors import SatsightError
+from satsight.frames.rigid import RigidTransform
 from satsight.lighting.bodies import MOON_MEAN_RADIUS_M, environment_light_field
 from satsight.lighting.light_field import LightField
 from satsight.poses.plan import frames_to_render, plan_track
@@ -39,7 +29,6 @@ from satsight.render.buffers import RadianceImage, SunLight
 from satsight.render.renderer import Renderer
 from satsight.scene.loading import load_mesh
 from satsight.scene.mesh import TargetMesh
-from satsight.scene.obj_export import write_obj
 from satsight.scene.procedural import generate_satellite
 from satsight.sensor.chain import DnImage, SensorChain, blur_radius_px
 
@@ -54,15 +43,6 @@ CONVENTIONS = {
     "keypoints": "8 bounding-box corners (bit 0: x, bit 1: y, bit 2: z; 0 min, 1 max), then "
     "the box centre",
 }
-
-
-def is_dataset(folder: Path) -> bool:
-    """Whether ``folder`` holds a dataset written by satsight (its labels.json says so)."""
-    try:
-        document = json.loads((Path(folder) / "labels.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    return isinstance(document, dict) and document.get("format") == LABELS_FORMAT
 
 
 def build_target(config: TargetConfig) -> TargetMesh:
@@ -244,19 +224,6 @@ def expose_frame(
     return dn_image, {"sensor": dn_image.labels(), **stars}
 
 
-def _thumbnail_title(
-    index: int, track: PoseTrack, plan_index: int, labels: dict, crop_width_px: int
-) -> str:
-    plan = track.record(plan_index)
-    when = f"t = {plan['time_s']:.0f} s, " if plan["epoch_utc"] else ""
-    flags = "" if plan["visible"] else "  [fails visibility]"
-    return (
-        f"#{index}  {when}{track.range_m[plan_index] / 1e3:.3g} km, "
-        f"phase {labels['phase_angle_deg']:.0f}°{flags}\n"
-        f"{labels['object_pixel_count']} px on target; crop {crop_width_px} px wide"
-    )
-
-
 def sensor_summary(sensor: SensorChain) -> dict:
     """The camera's optics, detector and exposure rule, JSON-ready, for labels.json."""
     return {
@@ -275,140 +242,143 @@ def sensor_summary(sensor: SensorChain) -> dict:
 
 
 @dataclass(frozen=True)
-class RunSummary:
-    out_dir: Path
-    frame_count: int
-    render_seconds: list[float]
-    total_seconds: float
-    variant: str
+class RenderedFrame:
+    """One frame after the renderer: its numbers, pose, light and images."""
+
+    frame_index: int
+    plan_index: int
+    cam_from_body: RigidTransform
+    light: LightField
+    sun: SunLight
+    image: RadianceImage
 
 
-ProgressCallback = Callable[[int, int], None]
-# Frames whose files are written in the background while the next one renders.
-_WRITER_THREADS = 2
+class FrameEngine:
+    """What every frame of one scenario shares, built once per process and kept.
 
-
-def run_scenario(
-    scenario: Scenario,
-    out_dir: Path,
-    overwrite: bool = False,
-    on_frame_done: ProgressCallback | None = None,
-) -> RunSummary:
-    """Render every frame of ``scenario`` and write the dataset to ``out_dir``.
-
-    The dataset is built in a temporary folder and moved into place only when complete.
-    ``on_frame_done(done, total)`` is called after each frame (for progress bars).
+    The mesh, the frame plan, the sensor (optics kernel, detector, fixed pattern) and the
+    renderer with its compiled kernels: a process that renders many frames of a scenario
+    (one ``generate`` run, or one distributed worker) builds them once.
     """
-    out_dir = Path(out_dir)
-    check_output_folder(out_dir, overwrite)
-    if overwrite and out_dir.is_dir() and any(out_dir.iterdir()) and not is_dataset(out_dir):
-        raise SatsightError(
-            f"--overwrite replaces only satsight datasets, and {out_dir} holds no satsight "
-            "labels.json; choose an empty or new folder"
-        )
-    started = time.perf_counter()
-    mesh = build_target(scenario.target)
-    camera = scenario.camera.build()
-    track, indices = planned_frames(scenario, mesh)
-    renderer = Renderer(mesh, scenario.render.settings(), scenario.render.variant)
-    sensor = build_sensor(scenario)
-    if scenario.stars.enabled and track.has_sky:
-        from satsight.sensor.star_catalog import load_star_catalog
 
-        load_star_catalog(scenario.stars.v_mag_limit)  # fails here, before any rendering
-    frames, thumbs, titles, render_seconds = [], [], [], []
-    with (
-        staged_folder(out_dir, overwrite) as root,
-        ThreadPoolExecutor(max_workers=_WRITER_THREADS) as writers,
-    ):
-        # The model goes first: a mesh that cannot be written fails before any rendering.
-        (root / "model").mkdir()
-        write_obj(mesh, root / "model" / "target.obj")
-        writes: list[Future] = []
-        for index, plan_index in enumerate(indices):
-            cam_from_body = track.cam_from_body(plan_index)
-            light, sun = frame_light(scenario, track, plan_index)
-            t0 = time.perf_counter()
-            image = renderer.render(
-                camera, cam_from_body, light, seed=frame_seed(scenario.seed, int(plan_index))
+    def __init__(self, scenario: Scenario):
+        self.scenario = scenario
+        self.mesh = build_target(scenario.target)
+        self.camera = scenario.camera.build()
+        self.track, self.plan_indices = planned_frames(scenario, self.mesh)
+        self.sensor = build_sensor(scenario)
+        self._renderer: Renderer | None = None
+
+    @property
+    def frame_count(self) -> int:
+        """Frames of the dataset (the plan's frames that pass the visibility rule)."""
+        return len(self.plan_indices)
+
+    @property
+    def renderer(self) -> Renderer:
+        if self._renderer is None:
+            self._renderer = Renderer(
+                self.mesh, self.scenario.render.settings(), self.scenario.render.variant
             )
-            render_seconds.append(time.perf_counter() - t0)
-            labels = frame_labels(mesh, camera, cam_from_body, sun, image)
-            dn_image, sensor_labels = expose_frame(
-                scenario, sensor, track, int(plan_index), image, cam_from_body.apply(mesh.center_m)
-            )
-            # Files are compressed and written in the background while the next frame
-            # renders; waiting on older writes bounds the frames held in memory.
-            writes.append(writers.submit(write_frame, root, index, image, dn_image))
-            if index >= _WRITER_THREADS:
-                writes[index - _WRITER_THREADS].result()
-            record = {"frame_index": index, "plan_index": int(plan_index)}
-            if scenario.frames:
-                record["view"] = scenario.frames[plan_index].model_dump()
-            record["plan"] = track.record(plan_index)
-            record["sun_direction_body"] = sun.direction_body.tolist()
-            record["environment_sh_radiance_w_m2_sr"] = light.sh_radiance_w_m2_sr.tolist()
-            frames.append({**record, **labels, **sensor_labels})
-            x0, y0, x1, y1 = crop_box_xyxy_px(labels["bbox_xyxy_px"], image.shape)
-            thumbs.append(thumbnail(image.radiance_w_m2_sr[y0:y1, x0:x1]))
-            titles.append(_thumbnail_title(index, track, plan_index, labels, x1 - x0))
-            del image, dn_image
-            if on_frame_done is not None:
-                on_frame_done(index + 1, len(indices))
-        for record, write in zip(frames, writes, strict=True):
-            record.update(write.result())
-        (root / "scenario.yaml").write_text(
-            yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False), encoding="utf-8"
+        return self._renderer
+
+    def load_star_catalogue(self) -> None:
+        """Load the catalogue now if frames need it, so that a missing one fails early."""
+        if self.scenario.stars.enabled and self.track.has_sky:
+            from satsight.sensor.star_catalog import load_star_catalog
+
+            load_star_catalog(self.scenario.stars.v_mag_limit)
+
+    def render(self, frame_index: int) -> RenderedFrame:
+        """Render frame ``frame_index`` of the dataset (its seed from its plan index)."""
+        plan_index = int(self.plan_indices[frame_index])
+        cam_from_body = self.track.cam_from_body(plan_index)
+        light, sun = frame_light(self.scenario, self.track, plan_index)
+        image = self.renderer.render(
+            self.camera, cam_from_body, light, seed=frame_seed(self.scenario.seed, plan_index)
         )
-        write_contact_sheet(
-            root / "contact_sheet.png",
-            thumbs,
-            titles,
-            f"{scenario.name}: {mesh.name}, {camera.width_px}x{camera.height_px} px, "
-            f"f = {camera.focal_length_m:g} m",
+        return RenderedFrame(frame_index, plan_index, cam_from_body, light, sun, image)
+
+    def finish(self, frame: RenderedFrame) -> tuple[dict, FrameArrays, tuple | None]:
+        """Labels, optics and detector of a rendered frame.
+
+        Returns the frame's label record (without its files), the arrays its files are
+        made of, and the crop window (x0, y0, x1, y1), or None without a crop.
+        """
+        scenario, plan_index = self.scenario, frame.plan_index
+        labels = frame_labels(self.mesh, self.camera, frame.cam_from_body, frame.sun, frame.image)
+        dn_image, sensor_labels = expose_frame(
+            scenario,
+            self.sensor,
+            self.track,
+            plan_index,
+            frame.image,
+            frame.cam_from_body.apply(self.mesh.center_m),
         )
-        write_labels(
-            root,
-            {
-                "satsight_version": __version__,
-                "scenario": scenario.name,
-                "render_variant": renderer.variant,
-                "conventions": CONVENTIONS,
-                "camera": {
-                    "focal_length_m": camera.focal_length_m,
-                    "pixel_pitch_m": camera.pixel_pitch_m,
-                    "image_size_px": [camera.width_px, camera.height_px],
-                    "K": camera.K.tolist(),
-                    "fov_x_deg": float(np.degrees(camera.fov_x_rad)),
-                    "fov_y_deg": float(np.degrees(camera.fov_y_rad)),
-                },
-                "sun": {
-                    "description": "per frame: sun_direction_body, sun_direction_cam and "
-                    "sun_irradiance_w_m2 (in band, at the target, after the Earth's shadow)",
-                    "spectrum": scenario.sun.spectrum,
-                    "band_nm": list(scenario.sun.band_nm),
-                },
-                "render_settings": dataclasses.asdict(renderer.settings),
-                "sensor": sensor_summary(sensor),
-                "preview": {"stretch": DN_PREVIEW_STRETCH},
-                "environment_light": {
-                    "description": "per frame: environment_sh_radiance_w_m2_sr, earthshine "
-                    "and moonshine as real SH, index l(l+1)+m, body frame, direction towards "
-                    "the source",
-                    "sh_order": scenario.render.sh_order,
-                },
-                "target": {
-                    **mesh.summary(),
-                    "model_obj": "model/target.obj",
-                    "keypoints_body_m": mesh.keypoints_body_m.tolist(),
-                },
-                "frames": frames,
+        record: dict = {"frame_index": frame.frame_index, "plan_index": plan_index}
+        if scenario.frames:
+            record["view"] = scenario.frames[plan_index].model_dump()
+        record["plan"] = self.track.record(plan_index)
+        record["sun_direction_body"] = frame.sun.direction_body.tolist()
+        record["environment_sh_radiance_w_m2_sr"] = frame.light.sh_radiance_w_m2_sr.tolist()
+        record.update(labels)
+        record.update(sensor_labels)
+        crop = scenario.outputs.crop
+        box = None
+        if crop is not None:
+            box = crop_window_xyxy_px(labels["keypoints_px"][-1], crop.size_px, frame.image.shape)
+            record["crop"] = crop_labels(labels, frame.image.object_mask, box)
+        return record, FrameArrays(frame.image, dn_image), box
+
+    def header(self) -> dict:
+        """The dataset's description: everything labels.json holds besides its frames."""
+        from satsight.render.backend import use_variant
+
+        scenario, camera, mesh = self.scenario, self.camera, self.mesh
+        return {
+            "satsight_version": __version__,
+            "scenario": scenario.name,
+            "frame_count": self.frame_count,
+            "plan_indices": [int(i) for i in self.plan_indices],
+            "render_variant": use_variant(scenario.render.variant),
+            "conventions": CONVENTIONS,
+            "outputs": {
+                **scenario.outputs.model_dump(mode="json"),
+                "file_keys": list(scenario.outputs.file_keys()),
             },
-        )
-    return RunSummary(
-        out_dir=out_dir,
-        frame_count=len(frames),
-        render_seconds=render_seconds,
-        total_seconds=time.perf_counter() - started,
-        variant=renderer.variant,
-    )
+            "camera": {
+                "focal_length_m": camera.focal_length_m,
+                "pixel_pitch_m": camera.pixel_pitch_m,
+                "image_size_px": [camera.width_px, camera.height_px],
+                "K": camera.K.tolist(),
+                "fov_x_deg": float(np.degrees(camera.fov_x_rad)),
+                "fov_y_deg": float(np.degrees(camera.fov_y_rad)),
+            },
+            "sun": {
+                "description": "per frame: sun_direction_body, sun_direction_cam and "
+                "sun_irradiance_w_m2 (in band, at the target, after the Earth's shadow)",
+                "spectrum": scenario.sun.spectrum,
+                "band_nm": list(scenario.sun.band_nm),
+            },
+            "render_settings": dataclasses.asdict(scenario.render.settings()),
+            "sensor": sensor_summary(self.sensor),
+            "preview": {"stretch": DN_PREVIEW_STRETCH},
+            "environment_light": {
+                "description": "per frame: environment_sh_radiance_w_m2_sr, earthshine "
+                "and moonshine as real SH, index l(l+1)+m, body frame, direction towards "
+                "the source",
+                "sh_order": scenario.render.sh_order,
+            },
+            "target": {
+                **mesh.summary(),
+                "model_obj": "model/target.obj",
+                "keypoints_body_m": mesh.keypoints_body_m.tolist(),
+            },
+        }
+
+
+def run_scenario(*args, **kwargs):
+    """Render a scenario into a dataset folder: ``satsight.generation.generate_dataset``."""
+    from satsight.generation import generate_dataset
+
+    return generate_dataset(*args, **kwargs)

@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import yaml
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -32,7 +31,9 @@ from satsight.config.orbital import (
     VisibilityConfig,
     check_sspt_size,
 )
+from satsight.config.outputs import OutputsConfig
 from satsight.config.sensor import DetectorConfig, ExposureConfig, OpticsConfig, StarsConfig
+from satsight.config.yaml_safety import load_yaml_file
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, SPECTRA, band_irradiance_w_m2
@@ -291,6 +292,19 @@ class Scenario(_Strict):
     propagation: PropagationConfig = PropagationConfig()
     render: RenderConfig = RenderConfig()
     stars: StarsConfig = StarsConfig()
+    outputs: OutputsConfig = OutputsConfig()
+
+    @model_validator(mode="after")
+    def _crop_fits(self) -> Scenario:
+        crop = self.outputs.crop
+        if crop is not None:
+            camera = self.camera.build()
+            if crop.size_px > min(camera.width_px, camera.height_px):
+                raise ValueError(
+                    f"outputs.crop.size_px ({crop.size_px}) exceeds the image "
+                    f"({camera.width_px} x {camera.height_px} px); choose a smaller crop"
+                )
+        return self
 
     @field_validator("epoch_utc")
     @classmethod
@@ -350,9 +364,19 @@ class Scenario(_Strict):
         return self
 
 
+_MAX_LISTED_ERRORS = 50  # a file of 100 000 wrong values gets a page of them, not a flood
+_MAX_SHOWN_CHARS = 200  # a value shown after "got" is cut to this many characters
+
+
+def _shown(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= _MAX_SHOWN_CHARS else text[: _MAX_SHOWN_CHARS - 3] + "..."
+
+
 def _format_validation_error(error: ValidationError, source: str) -> str:
     lines = [f"{source}: the scenario is not valid:"]
-    for item in error.errors():
+    items = error.errors()
+    for item in items[:_MAX_LISTED_ERRORS]:
         where = ".".join(str(p) for p in item["loc"]) or "(top level)"
         message = item["msg"].removeprefix("Value error, ")
         if item["type"] == "extra_forbidden":
@@ -363,9 +387,11 @@ def _format_validation_error(error: ValidationError, source: str) -> str:
         suffix = (
             ""
             if item["type"] in ("missing", "extra_forbidden") or isinstance(got, dict)
-            else f" (got {got!r})"
+            else f" (got {_shown(got)})"
         )
         lines.append(f"  - {where}: {message}{suffix}")
+    if len(items) > _MAX_LISTED_ERRORS:
+        lines.append(f"  ... and {len(items) - _MAX_LISTED_ERRORS} more")
     return "\n".join(lines)
 
 
@@ -380,17 +406,13 @@ def parse_scenario(data: object, source: str = "scenario") -> Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario YAML file. Mesh paths are resolved against its folder."""
+    """Read and validate a scenario YAML file. Mesh paths are resolved against its folder.
+
+    The file is read within the limits of ``satsight.config.yaml_safety`` (size, nesting,
+    aliases; no repeated keys).
+    """
     path = Path(path)
-    if not path.is_file():
-        raise SatsightError(f"scenario file not found: {path}")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as error:
-        raise SatsightError(f"{path}: not valid YAML: {error}") from None
-    except UnicodeDecodeError:
-        raise SatsightError(f"{path}: not a UTF-8 text file; save it as UTF-8 YAML") from None
-    scenario = parse_scenario(data, str(path))
+    scenario = parse_scenario(load_yaml_file(path), str(path))
     mesh = scenario.target.mesh
     if mesh is not None and not mesh.path.is_absolute():
         resolved = (path.parent / mesh.path).resolve()

@@ -8,17 +8,35 @@ import imagecodecs
 import numpy as np
 import OpenEXR
 
-# zlib level of PNG files: 3 compresses mostly-black space images nearly as well as 9,
-# several times faster.
-PNG_ZLIB_LEVEL = 3
+# zlib settings of PNG files, measured on 4096 x 4112 space frames (2-core CPU):
+# - level 1 is 2x faster than level 3 and its files are 0-8 % larger;
+# - mostly-empty images (masks, previews, part ids): the "sub" row filter with zlib's
+#   run-length strategy, 4x faster than libpng's adaptive filter at equal size;
+# - raw DN (read noise everywhere): no row filter, 1.7x faster than level 1 with the
+#   adaptive filter, and 7 % smaller, as filters only add entropy to noise.
+PNG_ZLIB_LEVEL = 1
+_PNG_FILTER_NONE, _PNG_FILTER_SUB = 0x08, 0x10  # libpng's filter flags
+_ZLIB_RLE_STRATEGY = 3
 
 
-def write_png(path: Path, image: np.ndarray) -> None:
-    """Write a uint8 or uint16 image, (H, W) grey or (H, W, 3) RGB, as PNG of that depth."""
+def encode_png(image: np.ndarray, noisy: bool = False) -> bytes:
+    """PNG bytes of a uint8 or uint16 image, (H, W) grey or (H, W, 3) RGB, at that depth.
+
+    noisy: the image is noise-dominated (raw DN): rows are stored unfiltered.
+    """
     image = np.ascontiguousarray(image)
     if image.dtype not in (np.uint8, np.uint16):
         raise TypeError(f"PNG holds uint8 or uint16 samples, not {image.dtype}")
-    Path(path).write_bytes(imagecodecs.png_encode(image, level=PNG_ZLIB_LEVEL))
+    if noisy:
+        return imagecodecs.png_encode(image, level=PNG_ZLIB_LEVEL, filter=_PNG_FILTER_NONE)
+    return imagecodecs.png_encode(
+        image, level=PNG_ZLIB_LEVEL, strategy=_ZLIB_RLE_STRATEGY, filter=_PNG_FILTER_SUB
+    )
+
+
+def write_png(path: Path, image: np.ndarray, noisy: bool = False) -> None:
+    """Write a uint8 or uint16 image as PNG (see ``encode_png``)."""
+    Path(path).write_bytes(encode_png(image, noisy))
 
 
 def read_png(path: Path) -> np.ndarray:

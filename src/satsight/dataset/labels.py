@@ -68,3 +68,51 @@ def frame_labels(
         "visible_pixel_fraction": count / mask.size,
         "truncated": bool(border),
     }
+
+
+def crop_window_xyxy_px(
+    center_px: list[float] | None, size_px: int, shape: tuple[int, int]
+) -> tuple[int, int, int, int]:
+    """The crop window of side ``size_px`` centred on a pixel position, inside the image.
+
+    center_px: [x, y] of the target's projected box centre (pixel (0, 0) is the centre of
+    the top-left pixel), or None (behind the camera: the image centre is used). The window
+    is centred on the pixel holding that point and shifted inward at the borders, so its
+    size never changes. Returns (x0, y0, x1, y1) with exclusive ends.
+    """
+    height, width = shape
+    if size_px > min(height, width):
+        raise ValueError(f"crop of {size_px} px does not fit a {width} x {height} image")
+    if center_px is None:
+        center_px = [(width - 1) / 2.0, (height - 1) / 2.0]
+    origin = []
+    for value, extent in zip(center_px, (width, height), strict=True):
+        pixel = int(np.floor(np.clip(value, -1e9, 1e9) + 0.5))
+        origin.append(int(np.clip(pixel - size_px // 2, 0, extent - size_px)))
+    x0, y0 = origin
+    return x0, y0, x0 + size_px, y0 + size_px
+
+
+def crop_labels(labels: dict, mask: np.ndarray, box: tuple[int, int, int, int]) -> dict:
+    """The labels of a crop window: its intrinsics (K with the principal point moved by
+    the window's origin), the mask's box and pixel count inside it, and the keypoints in
+    its pixels. ``labels``: the full frame's record; ``mask``: its (H, W) object mask."""
+    x0, y0, x1, y1 = box
+    K = np.array(labels["K"], dtype=np.float64)
+    K[0, 2] -= x0
+    K[1, 2] -= y0
+    window = mask[y0:y1, x0:x1]
+    count = int(window.sum())
+    border = window[0, :].any() or window[-1, :].any() or window[:, 0].any()
+    border = bool(border or window[:, -1].any())
+    return {
+        "size_px": x1 - x0,
+        "box_xyxy_px": [x0, y0, x1, y1],
+        "K": K.tolist(),
+        "bbox_xyxy_px": mask_bbox_xyxy_px(window),
+        "keypoints_px": [
+            None if p is None else [p[0] - x0, p[1] - y0] for p in labels["keypoints_px"]
+        ],
+        "object_pixel_count": count,
+        "truncated": border,
+    }

@@ -81,7 +81,7 @@ def write_contact_sheet(
     import matplotlib.pyplot as plt
 
     count = len(thumbnails)
-    cols = min(count, 3)
+    cols = min(count, 3 if count <= 9 else 6)
     rows = int(np.ceil(count / cols))
     fig, axes = plt.subplots(
         rows, cols, figsize=(4.2 * cols, 4.8 * rows), squeeze=False, layout="constrained"
@@ -89,11 +89,11 @@ def write_contact_sheet(
     for ax in axes.ravel():
         ax.axis("off")
     for ax, image, title in zip(axes.ravel(), thumbnails, titles, strict=False):
-        ax.imshow(image, interpolation="nearest")
+        ax.imshow(image, interpolation="nearest", cmap="gray", vmin=0.0, vmax=1.0)
         ax.set_title(title, fontsize=9)
     fig.suptitle(
-        heading + "\n(crops around the target; each scaled to its own maximum, "
-        f"display gamma {PREVIEW_GAMMA})"
+        heading + "\n(crops around the target, DN above the bias; each scaled to its own "
+        f"maximum, display gamma {PREVIEW_GAMMA})"
     )
     fig.savefig(path, dpi=100, facecolor="white")
     plt.close(fig)

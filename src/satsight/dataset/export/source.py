@@ -1,0 +1,188 @@
+"""What an exporter reads from a dataset: each frame's pose, intrinsics and images.
+
+A frame is exported either whole or as its crop (``--crop``, or automatically when the
+dataset keeps only crops). ``ExportFrame`` holds what the exporters need in the chosen
+view: the pose ``x_cam = R(q_cam_from_body) @ x_body + t_cam_from_body_m`` (metres; the
+same for a crop, whose camera frame is the full frame's), the 3x3 intrinsics K in that
+view's pixels (pixel (0, 0) is the centre of the top-left pixel), its size and its files.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from satsight.dataset.image_files import read_exr, read_png
+from satsight.dataset.preview import dn_preview_uint8
+from satsight.dataset.reader import Dataset
+from satsight.errors import SatsightError
+
+#: The scenario's ``outputs.files`` name that writes each file key (for error messages).
+OUTPUT_OF_KEY = {
+    "dn_png16": "dn",
+    "preview_png8": "preview",
+    "radiance_exr": "radiance",
+    "depth_exr": "depth",
+    "normals_exr": "normals",
+    "object_mask_png": "masks",
+    "part_mask_png16": "masks",
+}
+
+
+@dataclass(frozen=True)
+class ExportFrame:
+    """One frame as an exporter sees it (full frame, or its crop when ``crop``).
+
+    frame_index: the frame's number in the dataset. q_cam_from_body: (4,) scalar-first
+    Hamilton quaternion. t_cam_from_body_m: (3,) metres, camera frame (OpenCV axes).
+    K: (3, 3) intrinsics of this view, pixels. size_px: (W, H). bbox_xyxy_px: inclusive
+    [x_min, y_min, x_max, y_max] of the object mask in this view, or None. files: file
+    key -> absolute path of this view's files.
+    """
+
+    frame_index: int
+    q_cam_from_body: np.ndarray
+    t_cam_from_body_m: np.ndarray
+    K: np.ndarray
+    size_px: tuple[int, int]
+    bbox_xyxy_px: list[int] | None
+    keypoints_px: list
+    files: dict[str, Path]
+    crop: bool
+
+
+def uses_crops(dataset: Dataset, crop_requested: bool) -> bool:
+    """Whether to export the crops: asked for, or the only images the dataset keeps."""
+    frames = dataset.frames
+    if not frames:
+        raise SatsightError(f"{dataset.root} holds no frames; there is nothing to export")
+    with_crop = [f for f in frames if f.get("crop") and f["crop"].get("files")]
+    crop_only = [f for f in frames if not f.get("files")]
+    if crop_only and len(with_crop) < len(frames):
+        missing = sorted(
+            set(f["frame_index"] for f in frames) - {f["frame_index"] for f in with_crop}
+        )
+        raise SatsightError(
+            f"{dataset.root}: frame {missing[0]} has neither full-frame files nor a crop; "
+            "the dataset is damaged: regenerate it"
+        )
+    if crop_requested or crop_only:
+        if not with_crop:
+            raise SatsightError(
+                f"--crop: {dataset.root} has no crops; generate it with outputs.crop "
+                "(e.g. outputs: {crop: {size_px: 256}}) or export the full frames without --crop"
+            )
+        if len(with_crop) < len(frames):
+            raise SatsightError(
+                f"--crop: only {len(with_crop)} of {len(frames)} frames of {dataset.root} "
+                "have a crop; export the full frames without --crop"
+            )
+        return True
+    return False
+
+
+def export_frame(dataset: Dataset, record: dict, crop: bool) -> ExportFrame:
+    """The ``ExportFrame`` of a frame record, whole or cropped."""
+    view = record["crop"] if crop else record
+    files = {key: dataset.root / rel for key, rel in dataset.files(record, crop).items()}
+    if crop:
+        x0, y0, x1, y1 = (int(v) for v in view["box_xyxy_px"])
+        size = (x1 - x0, y1 - y0)
+    else:
+        size = (int(record["image_size_px"][0]), int(record["image_size_px"][1]))
+    return ExportFrame(
+        frame_index=int(record["frame_index"]),
+        q_cam_from_body=np.asarray(record["q_cam_from_body"], dtype=np.float64),
+        t_cam_from_body_m=np.asarray(record["t_cam_from_body_m"], dtype=np.float64),
+        K=np.asarray(view["K"], dtype=np.float64),
+        size_px=size,
+        bbox_xyxy_px=view.get("bbox_xyxy_px"),
+        keypoints_px=list(view.get("keypoints_px") or []),
+        files=files,
+        crop=crop,
+    )
+
+
+def require_file(frame: ExportFrame, key: str, purpose: str) -> Path:
+    """The path of a file the export needs, or a SatsightError saying how to get it."""
+    path = frame.files.get(key)
+    view = "crop" if frame.crop else "frame"
+    if path is None:
+        raise SatsightError(
+            f"{purpose} needs {key} (output '{OUTPUT_OF_KEY[key]}'), which {view} "
+            f"{frame.frame_index} lacks; regenerate the dataset with '{OUTPUT_OF_KEY[key]}' "
+            "in outputs.files"
+        )
+    if not path.is_file():
+        raise SatsightError(f"{path} is missing: the dataset is damaged; regenerate it")
+    return path
+
+
+def dn_stretch(header: dict) -> tuple[float, float]:
+    """(bias_dn, full_well_dn) of the dataset's detector, for the 8-bit DN stretch."""
+    detector = (header.get("sensor") or {}).get("detector") or {}
+    try:
+        bias = float(detector["bias_dn"])
+        full_well = bias + float(detector["full_well_e"]) / float(
+            detector["conversion_gain_e_per_dn"]
+        )
+        adc_max = float((1 << int(detector["adc_bits"])) - 1)
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        raise SatsightError(
+            "the dataset has no 8-bit previews and its manifest lacks sensor.detector "
+            "(bias_dn, full_well_e, conversion_gain_e_per_dn, adc_bits) to stretch the DN "
+            "images; regenerate it with 'preview' in outputs.files"
+        ) from None
+    return bias, min(full_well, adc_max)
+
+
+def read_gray8(frame: ExportFrame, header: dict, purpose: str) -> tuple[np.ndarray, str]:
+    """The frame's 8-bit grey image and the file key it came from.
+
+    The 8-bit preview when the dataset has it; otherwise the raw DN with the preview's
+    stretch (black at the bias, white at full well, gamma 2.2: ``dn_preview_uint8``).
+    """
+    if "preview_png8" in frame.files:
+        image = read_png(require_file(frame, "preview_png8", purpose))
+        return _grey(image, frame, np.uint8), "preview_png8"
+    if "dn_png16" in frame.files:
+        dn = _grey(read_png(require_file(frame, "dn_png16", purpose)), frame, np.uint16)
+        bias, full_well = dn_stretch(header)
+        return dn_preview_uint8(dn, bias, full_well), "dn_png16"
+    raise SatsightError(
+        f"{purpose} needs an image, and {'crop' if frame.crop else 'frame'} "
+        f"{frame.frame_index} has neither preview_png8 nor dn_png16; regenerate the dataset "
+        "with 'preview' or 'dn' in outputs.files"
+    )
+
+
+def read_mask(frame: ExportFrame, purpose: str) -> np.ndarray:
+    """The frame's object mask as a boolean (H, W) array (True on the target)."""
+    image = read_png(require_file(frame, "object_mask_png", purpose))
+    return _grey(image, frame, np.uint8) > 0
+
+
+def read_depth_m(frame: ExportFrame, purpose: str) -> np.ndarray:
+    """Depth along +z_cam in metres, float64 (H, W); 0 where no surface."""
+    path = require_file(frame, "depth_exr", purpose)
+    channels = read_exr(path)
+    if "Z" not in channels:
+        raise SatsightError(f"{path} has no channel Z (depth in metres); regenerate it")
+    depth = _grey(np.asarray(channels["Z"], dtype=np.float64), frame, np.float64)
+    if not np.all(np.isfinite(depth)) or np.any(depth < 0):
+        raise SatsightError(f"{path} holds negative or non-finite depths: it is damaged")
+    return depth
+
+
+def _grey(image: np.ndarray, frame: ExportFrame, dtype: type) -> np.ndarray:
+    """Check a single-channel image of the frame's size and type."""
+    width, height = frame.size_px
+    if image.shape != (height, width) or image.dtype != dtype:
+        raise SatsightError(
+            f"{'crop' if frame.crop else 'frame'} {frame.frame_index}: expected a "
+            f"{width} x {height} {np.dtype(dtype).name} image, found shape {image.shape} "
+            f"{image.dtype}; the dataset is damaged: regenerate it"
+        )
+    return image

@@ -1,0 +1,145 @@
+"""Export to the layout of the SPEED+ spacecraft pose dataset (Park et al. 2022).
+
+Layout written::
+
+    OUT/camera.json                 cameraMatrix, distCoeffs, Nu, Nv, ppx, ppy, fx, fy, ccx, ccy
+    OUT/DOMAIN/images/imgNNNNNN.png 8-bit grey images, NNNNNN = frame_index + 1
+    OUT/DOMAIN/train.json, validation.json, test.json
+                                    [{filename, q_vbs2tango_true, r_Vo2To_vbs_true}, ...]
+
+Pose convention (SPEED+ tools: tpark94/speedplusbaseline src/utils/utils.py
+``quat2dcm`` and ``project_keypoints``, and ESA's speedplus-utils utils.py ``project``):
+``q_vbs2tango_true`` is scalar-first; ``quat2dcm(q)`` is the passive matrix of q, whose
+transpose is used to map the target's body points into the camera frame,
+``p_cam = quat2dcm(q).T @ p_body + r``. ``quat2dcm(q).T`` is the Hamilton active matrix of
+q, so ``q_vbs2tango_true`` has the same components as satsight's ``q_cam_from_body`` and
+``r_Vo2To_vbs_true`` (metres, camera frame) is ``t_cam_from_body_m``.
+
+Pixel convention: SPEED and SPEED+ put the principal point at (Nu / 2, Nv / 2) (SPEED+
+camera.json: ccx = 960, ccy = 600 for 1920 x 1200 px), the sensor centre when pixel
+coordinates are measured from the outer corner of the top-left pixel. satsight measures
+them from that pixel's centre (image centre ((W - 1) / 2, (H - 1) / 2)), so the export
+adds 0.5 px to the principal point: a point projected with the exported labels lands at
+satsight's pixel position + (0.5, 0.5), the same spot on the sensor.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from satsight.dataset.export.source import ExportFrame, read_gray8, require_file
+from satsight.dataset.image_files import encode_png
+from satsight.dataset.reader import Dataset
+from satsight.errors import SatsightError
+from satsight.frames.quaternion import canonical_quaternion
+
+#: satsight pixel position + this = SPEED+ pixel position (see the module docstring).
+PIXEL_OFFSET_PX = 0.5
+#: SPEED+'s label file of each satsight split.
+LABEL_FILES = {"train": "train.json", "val": "validation.json", "test": "test.json"}
+DEFAULT_DOMAIN = "synthetic"
+_PURPOSE = "the SPEED+ export"
+
+
+def image_name(frame_index: int) -> str:
+    """SPEED+-style image name: img000001.png for frame 0."""
+    return f"img{frame_index + 1:06d}.png"
+
+
+def speedplus_K(K: np.ndarray) -> np.ndarray:
+    """satsight intrinsics (pixel-centre origin) -> SPEED+ cameraMatrix (corner origin)."""
+    out = np.array(K, dtype=np.float64)
+    out[0, 2] += PIXEL_OFFSET_PX
+    out[1, 2] += PIXEL_OFFSET_PX
+    return out
+
+
+def label_entry(frame: ExportFrame) -> dict:
+    """One SPEED+ label: file name, scalar-first quaternion, translation in metres."""
+    return {
+        "filename": image_name(frame.frame_index),
+        "q_vbs2tango_true": canonical_quaternion(frame.q_cam_from_body).tolist(),
+        "r_Vo2To_vbs_true": frame.t_cam_from_body_m.tolist(),
+    }
+
+
+def _shared_camera(frames: list[ExportFrame]) -> tuple[np.ndarray, tuple[int, int]]:
+    """The one K and size of every frame, or a SatsightError (SPEED+ has one camera)."""
+    K, size = frames[0].K, frames[0].size_px
+    for frame in frames[1:]:
+        if frame.size_px != size or not np.allclose(frame.K, K, rtol=0, atol=1e-9):
+            what = "crops" if frame.crop else "frames"
+            raise SatsightError(
+                f"SPEED+ describes every image with one camera.json, but the {what} of this "
+                f"dataset have different intrinsics (frame {frame.frame_index} differs from "
+                f"frame {frames[0].frame_index}; a crop window moves with the target); "
+                "export them with --format bop (per-image cam_K)"
+                + (" or export the full frames without --crop" if frame.crop else "")
+            )
+    return K, size
+
+
+def camera_json(dataset: Dataset, K: np.ndarray, size: tuple[int, int]) -> dict:
+    """SPEED+ camera.json for intrinsics K (satsight convention) and size (W, H)."""
+    camera = dataset.header.get("camera") or {}
+    try:
+        focal_m = float(camera["focal_length_m"])
+    except (KeyError, TypeError, ValueError):
+        raise SatsightError(
+            "the dataset's manifest lacks camera.focal_length_m, which SPEED+'s camera.json "
+            "needs (fx, fy in metres); regenerate the dataset"
+        ) from None
+    pitch_x, pitch_y = focal_m / K[0, 0], focal_m / K[1, 1]
+    matrix = speedplus_K(K)
+    return {
+        "cameraMatrix": matrix.tolist(),
+        "distCoeffs": [0.0, 0.0, 0.0, 0.0, 0.0],
+        "Nu": int(size[0]),
+        "Nv": int(size[1]),
+        "ppx": pitch_x,
+        "ppy": pitch_y,
+        "fx": float(K[0, 0] * pitch_x),
+        "fy": float(K[1, 1] * pitch_y),
+        "ccx": float(matrix[0, 2]),
+        "ccy": float(matrix[1, 2]),
+    }
+
+
+def _write_image(frame: ExportFrame, header: dict, images: Path) -> str:
+    target = images / image_name(frame.frame_index)
+    if "preview_png8" in frame.files:
+        shutil.copyfile(require_file(frame, "preview_png8", _PURPOSE), target)
+        return "preview_png8"
+    gray, key = read_gray8(frame, header, _PURPOSE)
+    target.write_bytes(encode_png(gray))
+    return key
+
+
+def write_speedplus(
+    dataset: Dataset, splits: dict[str, list[ExportFrame]], root: Path, domain: str
+) -> list[str]:
+    """Write the SPEED+ export of ``splits`` into ``root``; returns notes for the summary."""
+    frames = [f for split in splits.values() for f in split]
+    K, size = _shared_camera(frames)
+    for frame in frames:  # fail before writing anything large
+        if not ({"preview_png8", "dn_png16"} & frame.files.keys()):
+            read_gray8(frame, dataset.header, _PURPOSE)  # raises with the remedy
+    (root / "camera.json").write_text(
+        json.dumps(camera_json(dataset, K, size), indent=2) + "\n", encoding="utf-8"
+    )
+    images = root / domain / "images"
+    images.mkdir(parents=True)
+    sources = set()
+    for name, split_frames in splits.items():
+        for frame in split_frames:
+            sources.add(_write_image(frame, dataset.header, images))
+        labels = [label_entry(frame) for frame in split_frames]
+        (root / domain / LABEL_FILES[name]).write_text(
+            json.dumps(labels, indent=1, allow_nan=False) + "\n", encoding="utf-8"
+        )
+    source = "8-bit previews" if sources == {"preview_png8"} else "DN stretched to 8 bits"
+    return [f"images: {source}", "principal point shifted +0.5 px (SPEED+ pixel origin)"]

@@ -1,0 +1,380 @@
+"""The checks of one frame: its pose labels, its files, and the labels against the images.
+
+Tolerances, and why:
+
+- Quaternion norm within ``QUATERNION_NORM_TOLERANCE`` of 1: labels are written normalised
+  in float64 and JSON keeps every bit, so any larger error is an edit.
+- Keypoints within ``KEYPOINT_RTOL`` times max(1, |(u, v)|) pixels of the projection of
+  ``header["target"]["keypoints_body_m"]`` through K and the pose. Relative, because a
+  corner near the camera plane projects thousands of pixels off the image, where rounding
+  grows with the coordinate; 1e-6 is ten orders above float64 rounding, and a pose error it
+  would miss moves a point by less than a millionth of its distance from the origin.
+- Depth inside the depth range of the target's bounding box under the pose, to
+  ``DEPTH_RTOL`` of the range (float32 depth) plus ``DEPTH_ATOL_M``; mask box inside the
+  box of the projected corners, to ``BBOX_MARGIN_PX`` (a pixel is in the mask when its
+  footprint, not its centre, meets the target).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from satsight.dataset.file_checks import read_frame_file
+from satsight.dataset.labels import mask_bbox_xyxy_px
+from satsight.dataset.problems import Findings
+from satsight.frames.quaternion import matrix_from_quaternion
+
+QUATERNION_NORM_TOLERANCE = 1e-9
+KEYPOINT_RTOL = 1e-6
+FLOAT64_RTOL = 1e-9  # depths, ranges, K entries and fractions recomputed in float64
+DEPTH_RTOL = 1e-5
+DEPTH_ATOL_M = 1e-3
+BBOX_MARGIN_PX = 1.0
+# Images compared with the labels after decoding; the others are checked and dropped.
+KEPT_IMAGES = ("object_mask_png", "part_mask_png16", "depth_exr")
+
+
+class FrameCheck:
+    """Checks of one frame record and its files; problems go to ``self.findings``.
+
+    root: the dataset folder. frame: the frame's record. keypoints_body_m: (N, 3) box
+    corners and centre of the target, body frame, metres (None: not checked).
+    record_file: where the record is read from (``labels.json``, or ``journal.jsonl`` for
+    an incomplete dataset).
+    hashes: compare SHA-256 sums.
+    """
+
+    def __init__(
+        self,
+        root: Path,
+        frame: dict,
+        keypoints_body_m: np.ndarray | None,
+        record_file: str,
+        hashes: bool,
+    ):
+        self.root = Path(root)
+        self.frame = frame
+        self.index = frame.get("frame_index")
+        self.keypoints_body_m = keypoints_body_m
+        self.record_file = record_file
+        self.hashes = hashes
+        self.findings = Findings()
+
+    def problem(self, check: str, message: str, file: str | None = None) -> None:
+        self.findings.add(check, message, self.index, file or self.record_file)
+
+    # --- the whole frame ------------------------------------------------------------------
+    def run(self) -> Findings:
+        """Every check of the frame; returns the findings."""
+        points_cam = self.check_pose()
+        size = self.frame.get("image_size_px")
+        shape = (int(size[1]), int(size[0])) if _is_size(size) else None
+        if shape is None:
+            self.problem("files", f"expected image_size_px [W, H], found {size!r}")
+        images = self.read_files(self.frame.get("files") or {}, shape)
+        self.check_images(images, self.frame, self.frame.get("files") or {}, "masks")
+        if images.get("object_mask_png") is not None:
+            mask_file = self.frame["files"]["object_mask_png"]
+            self.check_mask_counts(images["object_mask_png"] == 255, self.frame, mask_file, "masks")
+        if points_cam is not None:
+            self.check_pose_against_images(images, points_cam)
+        crop = self.frame.get("crop")
+        if crop is not None:
+            self.check_crop(crop, images, points_cam)
+        self.check_checksum_entries()
+        return self.findings
+
+    def read_files(self, files: dict, shape: tuple[int, int] | None) -> dict:
+        """Output name -> decoded image of ``files`` (None where missing or broken).
+
+        Only the images the later checks compare (masks, depth) are kept in memory.
+        """
+        checksums = self.frame.get("checksums") or {}
+        images = {
+            key: read_frame_file(
+                self.root,
+                relative,
+                key,
+                shape,
+                checksums.get(relative),
+                self.hashes,
+                self.findings,
+                self.index,
+            )
+            for key, relative in files.items()
+        }
+        return {key: images[key] if key in KEPT_IMAGES else None for key in images}
+
+    def check_checksum_entries(self) -> None:
+        """Every checksum entry names one of the frame's files."""
+        listed = set((self.frame.get("files") or {}).values())
+        listed |= set(((self.frame.get("crop") or {}).get("files") or {}).values())
+        for path in sorted(set(self.frame.get("checksums") or {}) - listed):
+            self.problem(
+                "checksums",
+                "expected only the frame's files in its checksums, found this "
+                "one, which is not among them",
+                path,
+            )
+
+    # --- pose -----------------------------------------------------------------------------
+    def check_pose(self) -> np.ndarray | None:
+        """Unit quaternion, qw >= 0, keypoints, their depths and the range from the pose.
+
+        Returns the keypoints in the camera frame (N, 3), metres, or None when the pose
+        cannot be read.
+        """
+        self.findings.ran("pose")
+        try:
+            q = np.array(self.frame["q_cam_from_body"], dtype=np.float64)
+            t = np.array(self.frame["t_cam_from_body_m"], dtype=np.float64)
+            K = np.array(self.frame["K"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError) as error:
+            self.problem(
+                "pose",
+                f"expected q_cam_from_body, t_cam_from_body_m and K, found "
+                f"an unreadable pose ({error!r})",
+            )
+            return None
+        if (
+            q.shape != (4,)
+            or t.shape != (3,)
+            or K.shape != (3, 3)
+            or not (np.isfinite(q).all() and np.isfinite(t).all() and np.isfinite(K).all())
+        ):
+            self.problem(
+                "pose",
+                f"expected a finite quaternion (4), translation (3) and K "
+                f"(3x3), found shapes {q.shape}, {t.shape}, {K.shape}",
+            )
+            return None
+        norm = float(np.linalg.norm(q))
+        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+            self.problem("pose", f"expected a unit q_cam_from_body, found norm {norm:.12g}")
+        if q[0] < 0:
+            self.problem("pose", f"expected q_cam_from_body with qw >= 0, found qw = {q[0]:g}")
+        if norm == 0:
+            return None
+        range_m = self.frame.get("range_m")
+        if range_m is not None and not _close(range_m, float(np.linalg.norm(t)), FLOAT64_RTOL):
+            self.problem(
+                "pose",
+                f"expected range_m = |t_cam_from_body_m| = "
+                f"{np.linalg.norm(t):.9g}, found {range_m}",
+            )
+        if self.keypoints_body_m is None:
+            return None
+        points_cam = self.keypoints_body_m @ matrix_from_quaternion(q).T + t
+        self.check_keypoints(self.frame.get("keypoints_px"), points_cam, K, "pose", "keypoints_px")
+        depths = self.frame.get("keypoints_depth_m")
+        if depths is not None and not _close_list(depths, points_cam[:, 2], FLOAT64_RTOL):
+            self.problem(
+                "pose",
+                "expected keypoints_depth_m equal to the keypoints' z under "
+                f"the pose, {_fmt(points_cam[:, 2])}, found {_fmt(depths)}",
+            )
+        return points_cam
+
+    def check_keypoints(
+        self, labelled, points_cam: np.ndarray, K: np.ndarray, check: str, name: str
+    ) -> None:
+        """Labelled keypoints (pixels, None behind the camera) against their projection."""
+        if not isinstance(labelled, list) or len(labelled) != len(points_cam):
+            count = len(labelled) if isinstance(labelled, list) else labelled
+            self.problem(check, f"expected {len(points_cam)} {name}, found {count}")
+            return
+        projected = points_cam @ K.T
+        worst: tuple[float, int, str, str] | None = None
+        for i, (label, point) in enumerate(zip(labelled, projected, strict=True)):
+            if point[2] <= 0:
+                if label is not None:
+                    self.problem(
+                        check,
+                        f"expected {name}[{i}] null (behind the camera under "
+                        f"the pose), found {label}",
+                    )
+                continue
+            uv = point[:2] / point[2]
+            try:
+                found = np.array(label, dtype=np.float64)
+                error = float(np.linalg.norm(found - uv))
+            except (TypeError, ValueError):
+                error, found = np.inf, label
+            if not np.isfinite(error):
+                error = np.inf
+            tolerance = KEYPOINT_RTOL * max(1.0, float(np.linalg.norm(uv)))
+            if not error <= tolerance and (worst is None or error > worst[0]):
+                worst = (error, i, _fmt(uv), _fmt(found))
+        if worst is not None:
+            error, i, expected, found = worst
+            self.problem(
+                check,
+                f"expected {name}[{i}] = {expected} (K and the pose applied to "
+                f"keypoints_body_m), found {found}: {error:.3g} px off",
+            )
+
+    # --- labels against the images --------------------------------------------------------
+    def check_images(self, images: dict, labels: dict, files: dict, check: str) -> None:
+        """Box from the object mask; part mask and depth nonzero exactly where the mask is."""
+        mask = images.get("object_mask_png")
+        if mask is None:
+            return
+        self.findings.ran(check)
+        on = mask == 255
+        box = mask_bbox_xyxy_px(on)
+        if "bbox_xyxy_px" in labels and labels["bbox_xyxy_px"] != box:
+            self.problem(
+                check,
+                f"expected bbox_xyxy_px {box} (the object mask's box), found "
+                f"{labels['bbox_xyxy_px']}",
+                files["object_mask_png"],
+            )
+        for key, what in (("part_mask_png16", "part id"), ("depth_exr", "depth")):
+            image = images.get(key)
+            if image is None or image.shape != on.shape:
+                continue
+            differ = (image > 0) != on
+            if differ.any():
+                y, x = np.argwhere(differ)[0]
+                self.problem(
+                    check,
+                    f"expected {what} > 0 exactly where the object mask is, "
+                    f"found {int(differ.sum())} pixel(s) where they differ, the first "
+                    f"at (x={x}, y={y})",
+                    files[key],
+                )
+
+    def check_mask_counts(self, on: np.ndarray, labels: dict, file: str, check: str) -> None:
+        """object_pixel_count, visible_pixel_fraction and truncated (those ``labels`` has)
+        from the object mask ``on`` (boolean (H, W))."""
+        count = int(on.sum())
+        expected = {
+            "object_pixel_count": count,
+            "visible_pixel_fraction": count / on.size,
+            "truncated": bool(on[0].any() or on[-1].any() or on[:, 0].any() or on[:, -1].any()),
+        }
+        for key, value in expected.items():
+            if key not in labels:
+                continue
+            found = labels[key]
+            same = found == value if isinstance(value, bool | int) else _close(found, value, 1e-12)
+            if not same:
+                self.problem(
+                    check, f"expected {key} {value} (from the object mask), found {found}", file
+                )
+
+    def check_pose_against_images(self, images: dict, points_cam: np.ndarray) -> None:
+        """The target seen in the images lies inside its bounding box placed by the pose."""
+        corners = points_cam[:8]
+        if (corners[:, 2] <= 0).any():
+            return
+        files = self.frame.get("files") or {}
+        z_near, z_far = float(corners[:, 2].min()), float(corners[:, 2].max())
+        slack = DEPTH_RTOL * z_far + DEPTH_ATOL_M
+        mask, depth = images.get("object_mask_png"), images.get("depth_exr")
+        if depth is not None and (depth > 0).any():
+            seen = depth[depth > 0]
+            low, high = float(seen.min()), float(seen.max())
+            if low < z_near - slack or high > z_far + slack:
+                self.problem(
+                    "pose",
+                    f"expected depths within {z_near:.6g} .. {z_far:.6g} m (the "
+                    f"target's box under the pose), found {low:.6g} .. {high:.6g} m",
+                    files["depth_exr"],
+                )
+        if mask is not None and (mask == 255).any():
+            K = np.array(self.frame["K"], dtype=np.float64)
+            uv = corners @ K.T
+            uv = uv[:, :2] / uv[:, 2:]
+            lo, hi = uv.min(axis=0) - BBOX_MARGIN_PX, uv.max(axis=0) + BBOX_MARGIN_PX
+            x0, y0, x1, y1 = mask_bbox_xyxy_px(mask == 255)
+            if x0 < lo[0] or y0 < lo[1] or x1 > hi[0] or y1 > hi[1]:
+                self.problem(
+                    "pose",
+                    f"expected the object mask inside the projected box of the "
+                    f"target, {_fmt([*lo, *hi])} px, found its box at "
+                    f"{[x0, y0, x1, y1]}",
+                    files["object_mask_png"],
+                )
+
+    # --- crop -----------------------------------------------------------------------------
+    def check_crop(self, crop: dict, images: dict, points_cam: np.ndarray | None) -> None:
+        """Crop K, size and keypoints from the full frame's; crop images against its labels."""
+        self.findings.ran("crop")
+        try:
+            x0, y0, x1, y1 = (int(v) for v in crop["box_xyxy_px"])
+            K = np.array(self.frame["K"], dtype=np.float64)
+            K_crop = np.array(crop["K"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError) as error:
+            self.problem("crop", f"expected crop box_xyxy_px and K, found {error!r}")
+            return
+        size, box = crop.get("size_px"), [x0, y0, x1, y1]
+        if not (size == x1 - x0 == y1 - y0):
+            self.problem(
+                "crop", f"expected crop size_px the side of its square box {box}, found {size!r}"
+            )
+        width, height = self.frame.get("image_size_px") or (None, None)
+        if not (0 <= x0 < x1 <= (width or x1) and 0 <= y0 < y1 <= (height or y1)):
+            self.problem(
+                "crop", f"expected the crop box inside the {width} x {height} image, found {box}"
+            )
+        shifted = K.copy()
+        shifted[0, 2] -= x0
+        shifted[1, 2] -= y0
+        if K_crop.shape != (3, 3) or not np.allclose(K_crop, shifted, rtol=FLOAT64_RTOL, atol=0):
+            self.problem(
+                "crop",
+                f"expected crop K = K shifted by the box origin ({x0}, {y0}), "
+                f"{shifted.tolist()}, found {crop['K']}",
+            )
+        if points_cam is not None:
+            self.check_keypoints(
+                crop.get("keypoints_px"), points_cam, shifted, "crop", "crop keypoints_px"
+            )
+        files = crop.get("files") or {}
+        crop_images = self.read_files(files, (y1 - y0, x1 - x0))
+        self.check_images(crop_images, crop, files, "crop")
+        part = crop_images.get("object_mask_png")
+        if part is None:
+            return
+        self.check_mask_counts(part == 255, crop, files["object_mask_png"], "crop")
+        full = images.get("object_mask_png")
+        window = None if full is None else full[y0:y1, x0:x1]
+        if window is not None and window.shape == part.shape and not np.array_equal(window, part):
+            self.problem(
+                "crop",
+                f"expected the crop's object mask equal to the full frame's "
+                f"in {box}, found {int((window != part).sum())} pixel(s) that differ",
+                files["object_mask_png"],
+            )
+
+
+def _is_size(size) -> bool:
+    return (
+        isinstance(size, list)
+        and len(size) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in size)
+    )
+
+
+def _close(found, expected: float, rtol: float) -> bool:
+    try:
+        return abs(float(found) - expected) <= rtol * max(1.0, abs(expected))
+    except (TypeError, ValueError):
+        return False
+
+
+def _close_list(found, expected: np.ndarray, rtol: float) -> bool:
+    if not isinstance(found, list) or len(found) != len(expected):
+        return False
+    return all(_close(f, float(e), rtol) for f, e in zip(found, expected, strict=True))
+
+
+def _fmt(values) -> str:
+    """A short text of a number list (6 significant digits)."""
+    try:
+        return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"
+    except (TypeError, ValueError):
+        return repr(values)

@@ -1,0 +1,177 @@
+"""One frame's files: encoded on worker threads, written under temporary names, renamed.
+
+Layout (frame index k as six digits; see docs/dataset_format.md)::
+
+    images/frame_k.png          16-bit raw digital numbers (bias included)
+    previews/frame_k.png        8-bit display stretch of the DN image
+    radiance/frame_k.exr        float32 radiance, W m^-2 sr^-1 (channels R, G, B)
+    depth/frame_k.exr           float32 depth along +z_cam in metres (channel Z), 0 = none
+    normals/frame_k.exr         float32 unit normals in the camera frame (X, Y, Z)
+    masks/frame_k_object.png    8-bit object mask (255 = target)
+    masks/frame_k_parts.png     16-bit part ids (0 = background, part index + 1)
+    crop/<same folders>/...     the same files cut to the crop window, when asked for
+
+Files are only ever renamed into place whole, so a reader never sees a half-written file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from satsight.dataset.image_files import encode_png, write_exr
+from satsight.dataset.journal import bytes_checksum, file_checksum, temporary_name
+from satsight.dataset.preview import dn_preview_uint8
+from satsight.errors import SatsightError
+from satsight.render.buffers import RadianceImage
+from satsight.sensor.chain import DnImage
+
+#: File key -> (folder, file name suffix) of each output file.
+FILE_LAYOUT: dict[str, tuple[str, str]] = {
+    "dn_png16": ("images", ".png"),
+    "preview_png8": ("previews", ".png"),
+    "radiance_exr": ("radiance", ".exr"),
+    "depth_exr": ("depth", ".exr"),
+    "normals_exr": ("normals", ".exr"),
+    "object_mask_png": ("masks", "_object.png"),
+    "part_mask_png16": ("masks", "_parts.png"),
+}
+CROP_FOLDER = "crop"
+
+
+def frame_stem(index: int) -> str:
+    return f"frame_{index:06d}"
+
+
+def relative_path(key: str, index: int, crop: bool = False) -> str:
+    """Path of frame ``index``'s file ``key`` relative to the dataset folder (POSIX)."""
+    folder, suffix = FILE_LAYOUT[key]
+    path = f"{folder}/{frame_stem(index)}{suffix}"
+    return f"{CROP_FOLDER}/{path}" if crop else path
+
+
+@dataclass(frozen=True)
+class FrameArrays:
+    """What a frame's files are made of: the render's images and the detector's readout."""
+
+    image: RadianceImage
+    dn_image: DnImage
+
+    def window(self, box: tuple[int, int, int, int] | None) -> FrameArrays:
+        """The same arrays cut to ``box`` = (x0, y0, x1, y1), exclusive ends (None: all)."""
+        if box is None:
+            return self
+        x0, y0, x1, y1 = box
+        cut = np.s_[y0:y1, x0:x1]
+        image, dn = self.image, self.dn_image
+        return FrameArrays(
+            RadianceImage(
+                image.radiance_w_m2_sr[cut],
+                image.depth_m[cut],
+                image.part_id[cut],
+                image.normals_cam[cut],
+            ),
+            DnImage(
+                dn.dn[cut],
+                dn.exposure_time_s,
+                dn.saturated_pixel_count,
+                dn.star_count,
+                dn.bias_dn,
+                dn.full_well_dn,
+            ),
+        )
+
+
+def _png_bytes(key: str, arrays: FrameArrays) -> bytes:
+    image, dn = arrays.image, arrays.dn_image
+    if key == "dn_png16":
+        # Raw DN is mostly read noise: unfiltered rows compress as well as filtered ones
+        # (within 1 %) and encode 3x faster.
+        return encode_png(dn.dn, noisy=True)
+    if key == "preview_png8":
+        return encode_png(dn_preview_uint8(dn.dn, dn.bias_dn, dn.full_well_dn))
+    if key == "object_mask_png":
+        return encode_png(image.object_mask.astype(np.uint8) * np.uint8(255))
+    if key == "part_mask_png16":
+        return encode_png(np.ascontiguousarray(image.part_id))
+    raise KeyError(key)
+
+
+def _exr_channels(key: str, arrays: FrameArrays) -> dict[str, np.ndarray]:
+    image = arrays.image
+    if key == "radiance_exr":
+        return {"RGB": image.radiance_w_m2_sr}
+    if key == "depth_exr":
+        return {"Z": image.depth_m}
+    if key == "normals_exr":
+        normals = image.normals_cam
+        return {"X": normals[..., 0], "Y": normals[..., 1], "Z": normals[..., 2]}
+    raise KeyError(key)
+
+
+def _write_file(root: Path, relative: str, key: str, arrays: FrameArrays) -> dict:
+    """Encode and write one file through a temporary name; its checksum."""
+    path = root / relative
+    tmp = temporary_name(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if key.endswith("_exr"):
+            write_exr(tmp, _exr_channels(key, arrays))
+            checksum = file_checksum(tmp)
+        else:
+            data = _png_bytes(key, arrays)
+            checksum = bytes_checksum(data)
+            tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except OSError as error:
+        tmp.unlink(missing_ok=True)
+        raise SatsightError(
+            f"could not write {path}: {error.strerror or error}; the frames committed so far "
+            "are kept: free space or fix the folder, then run again with --resume"
+        ) from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return checksum
+
+
+def write_frame_files(
+    root: Path,
+    index: int,
+    arrays: FrameArrays,
+    keys: tuple[str, ...],
+    crop_box: tuple[int, int, int, int] | None,
+    full_frame: bool,
+    submit: Callable[..., object] | Executor | None = None,
+) -> tuple[dict, dict, dict]:
+    """Write frame ``index``'s files; return (files, crop files, checksums by path).
+
+    keys: the file keys to write. crop_box: (x0, y0, x1, y1) of the crop window, or None
+    for no crop. full_frame: whether to write the full frame's files. submit: an executor
+    to encode the files in parallel (their encoders release the GIL), or None for serial.
+    """
+    jobs: list[tuple[str, str, bool]] = []
+    if full_frame:
+        jobs += [(key, relative_path(key, index), False) for key in keys]
+    if crop_box is not None:
+        jobs += [(key, relative_path(key, index, crop=True), True) for key in keys]
+    cropped = None if crop_box is None else arrays.window(crop_box)
+
+    def run(job: tuple[str, str, bool]) -> dict:
+        key, relative, is_crop = job
+        return _write_file(root, relative, key, cropped if is_crop else arrays)
+
+    if submit is None:
+        results = [run(job) for job in jobs]
+    else:
+        futures = [submit.submit(run, job) for job in jobs]
+        results = [future.result() for future in futures]
+    files = {key: rel for key, rel, is_crop in jobs if not is_crop}
+    crop_files = {key: rel for key, rel, is_crop in jobs if is_crop}
+    checksums = {rel: checksum for (_, rel, _), checksum in zip(jobs, results, strict=True)}
+    return files, crop_files, dict(sorted(checksums.items()))

@@ -1,0 +1,72 @@
+"""Problems found in a dataset folder, and how many times each check ran.
+
+``satsight validate`` collects every problem instead of stopping at the first; each one
+names the frame and the file it concerns, what was expected and what came.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+#: The checks of ``satsight validate``, in the order of its summary table.
+CHECKS = {
+    "complete": "complete.json present, its frame count and SHA-256 sums match",
+    "manifest": "labels.json without its frames equals manifest.json",
+    "journal": "labels.json frames equal the journal records",
+    "indices": "frame indices 0 .. n-1, each once, n = manifest frame_count",
+    "files": "files exist, decode, and have the promised type, shape and values",
+    "checksums": "file sizes and SHA-256 equal the frame's checksums",
+    "pose": "unit quaternion with qw >= 0; keypoints, depths and range reproject from the pose",
+    "masks": "box, pixel count and flags from the object mask; part mask and depth agree",
+    "crop": "crop K, box, keypoints and files agree with the full frame",
+}
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One problem: which check found it, where, and what was expected and what came.
+
+    frame: the frame index, None for the dataset as a whole. file: the file's path relative
+    to the dataset folder, None when the problem is in a frame's record only.
+    """
+
+    check: str
+    message: str
+    frame: int | None = None
+    file: str | None = None
+
+    def __str__(self) -> str:
+        where = [f"frame {self.frame}"] if self.frame is not None else []
+        if self.file is not None:
+            where.append(self.file)
+        place = ", ".join(where) if where else "dataset"
+        return f"{place}: {self.message} [{self.check}]"
+
+
+@dataclass
+class Findings:
+    """Problems found so far, and how many items each check has looked at."""
+
+    problems: list[Problem] = field(default_factory=list)
+    checked: Counter = field(default_factory=Counter)
+
+    def ran(self, check: str, count: int = 1) -> None:
+        """Count ``count`` items looked at by ``check``."""
+        self.checked[check] += count
+
+    def add(
+        self, check: str, message: str, frame: int | None = None, file: str | None = None
+    ) -> None:
+        """Record a problem found by ``check``."""
+        self.problems.append(Problem(check, message, frame, file))
+
+    def extend(self, other: Findings) -> None:
+        """Take over another set of findings (in its order)."""
+        self.problems.extend(other.problems)
+        self.checked.update(other.checked)
+
+    def counts(self) -> dict[str, tuple[int, int]]:
+        """Check name -> (items checked, problems found), in the order of ``CHECKS``."""
+        found = Counter(p.check for p in self.problems)
+        return {name: (self.checked[name], found[name]) for name in CHECKS}

@@ -1,0 +1,183 @@
+"""``satsight stats``: what a dataset holds, counted and binned from its labels.
+
+Counts per distance interval, per target class and per visibility flag; histograms of the
+range (log bins), phase angle, visible pixel fraction, exposure time and saturated pixel
+count. Everything comes from the frame records (no image is read); ``stats.json`` holds the
+numbers and ``stats.png`` draws them.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from satsight.dataset.reader import Dataset
+from satsight.errors import SatsightError
+
+#: The plan's visibility flags (see ``PoseTrack.record``), in the order they are shown.
+VISIBILITY_FLAGS = ("visible", "earth_occulted", "eclipsed", "sun_excluded", "phase_rejected")
+
+#: Histogram name -> (unit, bin scale, axis label) of each distribution.
+DISTRIBUTIONS = {
+    "range_m": ("m", "log", "range, camera to body origin (m)"),
+    "phase_angle_deg": ("deg", "linear", "phase angle (deg)"),
+    "visible_pixel_fraction": ("1", "linear", "visible pixel fraction (of the image)"),
+    "exposure_time_s": ("s", "linear", "exposure time (s)"),
+    "saturated_pixel_count": ("pixels", "linear", "saturated pixels (count)"),
+}
+MAX_BINS = 30
+PHASE_BIN_DEG = 10.0
+STATS_JSON, STATS_PNG = "stats.json", "stats.png"
+
+
+def target_class(header: dict, frame: dict) -> str:
+    """The target class of a frame: its own, else the dataset's target's.
+
+    A procedural target is named ``CLASS-seedN``; the class is the name without the seed.
+    """
+    target = frame.get("target") if isinstance(frame.get("target"), dict) else None
+    for source in (target, header.get("target") or {}):
+        if source and source.get("satellite_class"):
+            return str(source["satellite_class"])
+    name = str((header.get("target") or {}).get("name", "unknown"))
+    return re.sub(r"-seed\d+$", "", name)
+
+
+def distance_interval(frame: dict) -> str:
+    """The frame's distance interval name from its plan (``unknown`` when it has none)."""
+    plan = frame.get("plan") or {}
+    name = plan.get("distance_interval", plan.get("interval"))
+    return "unknown" if name is None else str(name)
+
+
+def _value(frame: dict, name: str) -> float | None:
+    """A frame's value of distribution ``name`` (None when absent or not finite)."""
+    source = (
+        frame.get("sensor") or {} if name in ("exposure_time_s", "saturated_pixel_count") else frame
+    )
+    value = source.get(name)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return None
+    return value if np.isfinite(value) else None
+
+
+def bin_edges(values: np.ndarray, name: str) -> np.ndarray:
+    """Histogram bin edges of distribution ``name`` over ``values`` (not empty)."""
+    low, high = float(values.min()), float(values.max())
+    bins = int(min(MAX_BINS, max(5, np.ceil(np.sqrt(values.size)))))
+    scale = DISTRIBUTIONS[name][1]
+    if name == "phase_angle_deg":
+        return np.arange(0.0, 180.0 + PHASE_BIN_DEG, PHASE_BIN_DEG)
+    if name == "saturated_pixel_count" and high - low < bins:
+        return np.arange(np.floor(low), np.floor(high) + 2.0) - 0.5  # one bin per count
+    if scale == "log" and low > 0:
+        if high <= low:
+            low, high = low / 1.1, high * 1.1
+        return np.geomspace(low, high, bins + 1)
+    if high <= low:
+        low, high = low - 0.5 * max(abs(low), 1e-12), high + 0.5 * max(abs(high), 1e-12)
+    return np.linspace(low, high, bins + 1)
+
+
+def histogram(values: list[float], name: str, missing: int) -> dict:
+    """JSON-ready histogram of one distribution: unit, scale, edges, counts, summary."""
+    unit, scale, label = DISTRIBUTIONS[name]
+    result = {"unit": unit, "scale": scale, "label": label, "missing": missing}
+    if not values:
+        return {**result, "edges": [], "counts": [], "min": None, "median": None, "max": None}
+    array = np.asarray(values, dtype=np.float64)
+    edges = bin_edges(array, name)
+    counts, _ = np.histogram(np.clip(array, edges[0], edges[-1]), bins=edges)
+    return {
+        **result,
+        "edges": edges.tolist(),
+        "counts": counts.tolist(),
+        "min": float(array.min()),
+        "median": float(np.median(array)),
+        "max": float(array.max()),
+    }
+
+
+def dataset_stats(dataset: Dataset) -> dict:
+    """Counts and histograms of a dataset's frames, JSON-ready (see the module docstring).
+
+    Distance intervals are listed by increasing median range of their frames.
+    """
+    frames = dataset.frames
+    intervals = Counter(distance_interval(f) for f in frames)
+    ranges: dict[str, list[float]] = {}
+    for frame in frames:
+        value = _value(frame, "range_m")
+        ranges.setdefault(distance_interval(frame), []).append(np.inf if value is None else value)
+    order = sorted(intervals, key=lambda name: (float(np.median(ranges[name])), name))
+    visibility = {
+        flag: sum(1 for f in frames if (f.get("plan") or {}).get(flag) is True)
+        for flag in VISIBILITY_FLAGS
+    }
+    histograms = {}
+    for name in DISTRIBUTIONS:
+        values = [_value(f, name) for f in frames]
+        present = [v for v in values if v is not None]
+        histograms[name] = histogram(present, name, len(values) - len(present))
+    return {
+        "dataset": str(dataset.root),
+        "scenario": dataset.header.get("scenario"),
+        "frame_count": len(frames),
+        "complete": dataset.complete,
+        "counts": {
+            "distance_interval": {name: intervals[name] for name in order},
+            "target_class": dict(Counter(target_class(dataset.header, f) for f in frames)),
+            "visibility": visibility,
+        },
+        "histograms": histograms,
+    }
+
+
+def output_folder(dataset_root: Path, out_dir: Path) -> Path:
+    """``out_dir``, checked not to lie inside the dataset (which must stay unchanged)."""
+    root, out = Path(dataset_root).resolve(), Path(out_dir).resolve()
+    if out == root or root in out.parents:
+        raise SatsightError(
+            f"--out {out_dir} lies inside the dataset {dataset_root}, which stats never "
+            "changes; choose a folder outside it"
+        )
+    return Path(out_dir)
+
+
+def write_stats(stats: dict, out_dir: Path) -> tuple[Path, Path]:
+    """Write ``stats.json`` and ``stats.png`` into ``out_dir`` (created); their paths."""
+    from satsight.dataset.stats_plot import plot_stats
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    json_path = out_dir / STATS_JSON
+    json_path.write_text(json.dumps(stats, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    png_path = plot_stats(stats, out_dir / STATS_PNG)
+    return json_path, png_path
+
+
+def stats_tables(stats: dict) -> list:
+    """Rich tables of ``stats``: the counts, then the distributions' summaries."""
+    from rich.table import Table
+
+    counts = Table(title=f"{stats['frame_count']} frames of {stats['dataset']}")
+    for column, justify in (("group", "left"), ("value", "left"), ("frames", "right")):
+        counts.add_column(column, justify=justify)
+    for group, values in stats["counts"].items():
+        for value, count in values.items():
+            counts.add_row(group.replace("_", " "), value, str(count))
+    spread = Table(title="distributions")
+    for column in ("quantity", "unit", "min", "median", "max", "without"):
+        spread.add_column(column, justify="left" if column == "quantity" else "right")
+    for name, hist in stats["histograms"].items():
+        numbers = [
+            "-" if hist[key] is None else f"{hist[key]:.4g}" for key in ("min", "median", "max")
+        ]
+        spread.add_row(name, hist["unit"], *numbers, str(hist["missing"]))
+    return [counts, spread]

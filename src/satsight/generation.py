@@ -1,0 +1,400 @@
+"""A dataset run: the output folder, resuming, shards, and the frame engines that fill it.
+
+Frames are committed one at a time (docs/dataset_format.md): files renamed into place,
+then one journal line. An interrupted run keeps every committed frame, and
+``generate_dataset(..., resume=True)`` finishes it with the same bytes an uninterrupted run
+writes, because every frame depends only on the scenario and its plan index.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from satsight.config.scenario import Scenario
+from satsight.dataset.frame_files import write_frame_files
+from satsight.dataset.journal import JournalWriter, read_journal, write_bytes_atomic
+from satsight.dataset.manifest import (
+    finalize_dataset,
+    manifest_document,
+    scenario_sha256,
+    write_manifest,
+)
+from satsight.dataset.reader import COMPLETE_NAME, MANIFEST_NAME, is_dataset, read_json
+from satsight.errors import SatsightError
+from satsight.pipeline import FrameEngine, RenderedFrame
+from satsight.scene.obj_export import write_obj
+
+ProgressCallback = Callable[[int, int], None]
+# Threads that encode one frame's files (PNG and EXR encoders release the GIL).
+ENCODER_THREADS = 3
+# Frames rendered but not yet committed: one being finished while the next renders.
+MAX_FRAMES_IN_FLIGHT = 2
+
+
+@dataclass(frozen=True)
+class Shard:
+    """Shard ``index`` (0-based) of ``count``: the frames with frame_index % count == index."""
+
+    index: int
+    count: int
+
+    @classmethod
+    def parse(cls, text: str) -> Shard:
+        """A shard from ``K/N`` (K counted from 1, as a user says "shard 1 of 4")."""
+        try:
+            k, n = (int(part) for part in text.split("/"))
+        except ValueError:
+            raise SatsightError(f"--shard {text!r}: expected K/N, e.g. 1/4") from None
+        if not 1 <= k <= n:
+            raise SatsightError(f"--shard {text!r}: K must be between 1 and N")
+        return cls(k - 1, n)
+
+    def frames(self, frame_count: int) -> list[int]:
+        return list(range(self.index, frame_count, self.count))
+
+    def label(self) -> str:
+        return f"{self.index + 1}/{self.count}"
+
+
+@dataclass
+class RunSummary:
+    """What a run did. Stage times are per frame rendered in this run (s)."""
+
+    out_dir: Path
+    frame_count: int
+    committed_before: int
+    rendered: int
+    complete: bool
+    interrupted: bool
+    variant: str
+    total_seconds: float
+    stage_seconds: dict[str, list[float]] = field(default_factory=dict)
+
+    @property
+    def render_seconds(self) -> list[float]:
+        return self.stage_seconds.get("render", [])
+
+
+class StopFlag:
+    """Set when the user asks the run to stop (Ctrl-C): finish the frames in flight."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+
+    def set(self) -> None:
+        self._event.set()
+
+    def is_set(self) -> bool:
+        return self._event.is_set()
+
+
+@contextmanager
+def stop_on_sigint(flag: StopFlag) -> Iterator[None]:
+    """First Ctrl-C sets ``flag`` (the run stops after the frames in flight); a second
+    one interrupts at once (committed frames are kept either way)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame) -> None:
+        if flag.is_set():
+            raise KeyboardInterrupt
+        flag.set()
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _scenario_json(scenario: Scenario) -> dict:
+    return scenario.model_dump(mode="json")
+
+
+def dataset_manifest(engine: FrameEngine, shard: Shard | None) -> dict:
+    """The manifest of the dataset a scenario makes (for one shard of it, or whole)."""
+    header = engine.header()
+    return manifest_document(
+        {
+            **header,
+            "scenario_sha256": scenario_sha256(_scenario_json(engine.scenario)),
+            "shard": None if shard is None else shard.label(),
+        }
+    )
+
+
+def _differences(stored: dict, current: dict, prefix: str = "") -> list[str]:
+    """Dotted keys whose values differ between two JSON documents."""
+    keys = []
+    for key in sorted(set(stored) | set(current)):
+        a, b = stored.get(key), current.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            keys += _differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            keys.append(f"{prefix}{key}")
+    return keys
+
+
+def _check_same_dataset(root: Path, manifest: dict, scenario: Scenario) -> None:
+    """Refuse to resume a folder that holds another scenario's (or version's) dataset."""
+    stored = read_json(root / MANIFEST_NAME)
+    if stored == manifest:
+        return
+    if stored.get("scenario_sha256") != manifest["scenario_sha256"]:
+        try:
+            old = yaml.safe_load((root / "scenario.yaml").read_text(encoding="utf-8"))
+            keys = _differences(old if isinstance(old, dict) else {}, _scenario_json(scenario))
+        except (OSError, yaml.YAMLError):
+            keys = []
+        where = f" (differs in {', '.join(keys[:6])})" if keys else ""
+        raise SatsightError(
+            f"{root} holds a dataset of another scenario{where}; resume with the scenario "
+            "and options it was started with, or choose another folder"
+        )
+    keys = _differences(stored, manifest)
+    raise SatsightError(
+        f"{root} was started with different settings ({', '.join(keys[:6])}); resume with "
+        "the same satsight version, shard and render variant, or choose another folder"
+    )
+
+
+def _remove_temporary_files(root: Path) -> None:
+    """Delete files a killed run left under temporary names (``.NAME.tmp-PID``)."""
+    for folder, _, names in os.walk(root):
+        for name in names:
+            if name.startswith(".") and ".tmp-" in name:
+                Path(folder, name).unlink(missing_ok=True)
+
+
+def _intact(root: Path, record: dict) -> bool:
+    """Whether every file of a committed frame is there with its committed size."""
+    for relative, checksum in record.get("checksums", {}).items():
+        try:
+            if (root / relative).stat().st_size != checksum["size_bytes"]:
+                return False
+        except OSError:
+            return False
+    return True
+
+
+def committed_frames(root: Path, frames: list[int]) -> dict[int, dict]:
+    """Frame index -> record of the frames of ``frames`` that are committed and intact
+    (the last record of a frame wins; a frame whose files are missing or cut is not)."""
+    wanted = set(frames)
+    records: dict[int, dict] = {}
+    for record in read_journal(root):
+        index = record["frame_index"]
+        if index not in wanted:
+            raise SatsightError(
+                f"{root / 'journal.jsonl'} holds frame {index}, which this run does not "
+                "make (another shard's or scenario's); use the folder it was started for"
+            )
+        records[index] = record
+    return {i: r for i, r in records.items() if _intact(root, r)}
+
+
+def prepare_folder(
+    out_dir: Path, manifest: dict, scenario: Scenario, overwrite: bool, resume: bool
+) -> bool:
+    """Make ``out_dir`` ready for the run; True when it already holds a complete dataset.
+
+    A new or empty folder is started; an existing dataset is resumed (``resume``, same
+    manifest) or replaced (``overwrite``); anything else is refused before any writing.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise SatsightError(f"output path {out_dir} exists and is not a folder")
+    resolved = out_dir.resolve()
+    if resolved == Path(resolved.anchor) or Path.cwd().is_relative_to(resolved):
+        raise SatsightError(
+            f"output folder {out_dir} is the current folder or one of its parents; "
+            "choose a folder of its own"
+        )
+    occupied = out_dir.is_dir() and any(out_dir.iterdir())
+    if occupied:
+        if not is_dataset(out_dir):
+            raise SatsightError(
+                f"output folder {out_dir} is not empty and holds no satsight dataset; "
+                "choose an empty or new folder"
+            )
+        if overwrite:
+            shutil.rmtree(out_dir)
+        elif resume:
+            _check_same_dataset(out_dir, manifest, scenario)
+            return (out_dir / COMPLETE_NAME).is_file()
+        elif (out_dir / COMPLETE_NAME).is_file():
+            raise SatsightError(
+                f"output folder {out_dir} holds a complete dataset; pass --overwrite to "
+                "replace it, or choose another folder"
+            )
+        else:
+            committed = len({r["frame_index"] for r in read_journal(out_dir)})
+            raise SatsightError(
+                f"output folder {out_dir} holds an incomplete dataset ({committed} frames "
+                "committed); pass --resume to finish it or --overwrite to replace it"
+            )
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_manifest(out_dir, manifest)
+    return False
+
+
+def _write_dataset_files(root: Path, engine: FrameEngine) -> None:
+    """scenario.yaml and the model: rewritten on every start (same bytes each time)."""
+    write_bytes_atomic(
+        root / "scenario.yaml",
+        yaml.safe_dump(_scenario_json(engine.scenario), sort_keys=False).encode("utf-8"),
+    )
+    (root / "model").mkdir(exist_ok=True)
+    write_obj(engine.mesh, root / "model" / "target.obj")
+
+
+def finish_frame(
+    engine: FrameEngine, root: Path, frame: RenderedFrame, encoders: ThreadPoolExecutor | None
+) -> tuple[dict, dict[str, float]]:
+    """Sensor, labels and files of a rendered frame; its journal record and stage times."""
+    t0 = time.perf_counter()
+    record, arrays, box = engine.finish(frame)
+    t1 = time.perf_counter()
+    outputs = engine.scenario.outputs
+    files, crop_files, checksums = write_frame_files(
+        root,
+        frame.frame_index,
+        arrays,
+        outputs.file_keys(),
+        box,
+        outputs.crop is None or outputs.crop.full_frame,
+        encoders,
+    )
+    record["files"] = files
+    if "crop" in record:
+        record["crop"]["files"] = crop_files
+    record["checksums"] = checksums
+    return record, {"sensor": t1 - t0, "files": time.perf_counter() - t1}
+
+
+def _run_local(
+    engine: FrameEngine,
+    root: Path,
+    todo: list[int],
+    commit: Callable[[dict], None],
+    stop: StopFlag,
+    times: dict[str, list[float]],
+) -> None:
+    """Render the frames of ``todo`` in this process, one rendering while the one before
+    goes through the sensor and its files are encoded."""
+    with (
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-finish") as finisher,
+        ThreadPoolExecutor(ENCODER_THREADS, thread_name_prefix="satsight-encode") as encoders,
+    ):
+        pending: deque = deque()
+
+        def commit_oldest() -> None:
+            record, stage = pending.popleft().result()
+            for name, seconds in stage.items():
+                times.setdefault(name, []).append(seconds)
+            commit(record)
+
+        try:
+            for frame_index in todo:
+                if stop.is_set():
+                    break
+                t0 = time.perf_counter()
+                frame = engine.render(frame_index)
+                times.setdefault("render", []).append(time.perf_counter() - t0)
+                pending.append(finisher.submit(finish_frame, engine, root, frame, encoders))
+                del frame
+                while len(pending) >= MAX_FRAMES_IN_FLIGHT:
+                    commit_oldest()
+            while pending:
+                commit_oldest()
+        except BaseException:
+            # Frames already in flight are committed if they finish; the error goes on.
+            for future in pending:
+                future.cancel()
+            raise
+
+
+def generate_dataset(
+    scenario: Scenario,
+    out_dir: Path,
+    overwrite: bool = False,
+    resume: bool = False,
+    shard: Shard | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    on_frame_done: ProgressCallback | None = None,
+    stop: StopFlag | None = None,
+) -> RunSummary:
+    """Render ``scenario`` into the dataset folder ``out_dir``, frame by frame.
+
+    overwrite: replace a dataset already there. resume: finish the (same) dataset already
+    there. shard: render only that shard's frames (joined later by ``satsight merge``).
+    workers / scheduler: render on a Dask LocalCluster of that many processes, or on the
+    Dask scheduler at that address. on_frame_done(done, total) is called after each
+    committed frame. stop: a flag that, once set, ends the run after the frames in flight.
+    """
+    started = time.perf_counter()
+    out_dir = Path(out_dir)
+    stop = stop or StopFlag()
+    engine = FrameEngine(scenario)
+    engine.load_star_catalogue()  # fails here, before anything is written
+    manifest = dataset_manifest(engine, shard)
+    frames = (shard or Shard(0, 1)).frames(engine.frame_count)
+    summary = RunSummary(out_dir, len(frames), 0, 0, False, False, manifest["render_variant"], 0.0)
+    if prepare_folder(out_dir, manifest, scenario, overwrite, resume):
+        summary.complete = True
+        summary.committed_before = len(frames)
+        summary.total_seconds = time.perf_counter() - started
+        return summary
+    _remove_temporary_files(out_dir)
+    _write_dataset_files(out_dir, engine)
+    done = committed_frames(out_dir, frames)
+    summary.committed_before = len(done)
+    todo = [i for i in frames if i not in done]
+    if on_frame_done is not None:
+        on_frame_done(len(done), len(frames))
+
+    with JournalWriter(out_dir) as journal:
+
+        def commit(record: dict) -> None:
+            journal.append(record)
+            done[record["frame_index"]] = record
+            summary.rendered += 1
+            if on_frame_done is not None:
+                on_frame_done(len(done), len(frames))
+
+        if workers is None and scheduler is None:
+            _run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds)
+        else:
+            from satsight.distributed import run_distributed
+
+            run_distributed(
+                _scenario_json(scenario),
+                out_dir,
+                todo,
+                commit,
+                stop,
+                workers,
+                scheduler,
+                manifest["render_variant"],
+            )
+    summary.interrupted = len(done) < len(frames)
+    if not summary.interrupted:
+        _remove_temporary_files(out_dir)  # left by workers killed mid-write
+        finalize_dataset(out_dir, manifest, [done[i] for i in frames])
+        summary.complete = True
+    summary.total_seconds = time.perf_counter() - started
+    return summary
