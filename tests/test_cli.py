@@ -52,6 +52,11 @@ TOP_LEVEL_KEYS = {
     "environment_light",
     "target",
     "frames",
+    "frame_count",
+    "plan_indices",
+    "outputs",
+    "scenario_sha256",
+    "shard",
 }
 
 
@@ -71,10 +76,15 @@ _satsight = run_satsight
 
 
 # --- the demo dataset ---------------------------------------------------------------------
-def test_demo_writes_six_frames_and_leaves_no_staging_folder(demo_dir: Path, labels) -> None:
+def test_demo_writes_six_frames_and_closes_the_dataset(demo_dir: Path, labels) -> None:
     assert len(labels["frames"]) == FRAME_COUNT
     assert [f["frame_index"] for f in labels["frames"]] == list(range(FRAME_COUNT))
     assert [p.name for p in demo_dir.parent.iterdir()] == ["dataset"]
+    names = {p.name for p in demo_dir.iterdir()}
+    assert {"manifest.json", "journal.jsonl", "labels.json", "complete.json"} <= names
+    journal = (demo_dir / "journal.jsonl").read_text(encoding="utf-8").splitlines()
+    assert [json.loads(line) for line in journal] == labels["frames"]
+    assert not [p for p in demo_dir.rglob(".*") if ".tmp-" in p.name]
     for folder in ("images", "previews", "radiance", "depth", "normals", "masks"):
         assert len(list((demo_dir / folder).iterdir())) == FRAME_COUNT * (
             2 if folder == "masks" else 1
@@ -83,8 +93,10 @@ def test_demo_writes_six_frames_and_leaves_no_staging_folder(demo_dir: Path, lab
 
 def test_labels_top_level(labels) -> None:
     assert set(labels) == TOP_LEVEL_KEYS
-    assert labels["format"] == "satsight-labels"
-    assert labels["version"] == 2
+    assert labels["format"] == "satsight-dataset"
+    assert labels["version"] == 3
+    assert labels["frame_count"] == FRAME_COUNT and labels["shard"] is None
+    assert labels["outputs"]["files"] == ["dn", "preview", "radiance", "depth", "normals", "masks"]
     assert labels["scenario"] == "first-light"
     assert labels["render_variant"] in ("llvm_ad_rgb", "cuda_ad_rgb")
     preset = PinholeCamera.high_resolution()

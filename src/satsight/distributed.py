@@ -46,7 +46,7 @@ def _worker_engine(scenario_json: dict):
 
 def render_frame_task(scenario_json: dict, root: str, frame_index: int, variant: str) -> dict:
     """Render and write one frame on a worker; its journal record."""
-    from satsight.generation import finish_frame
+    from satsight.generation import sense_frame, write_frame
 
     engine = _worker_engine(scenario_json)
     if engine.renderer.variant != variant:
@@ -55,7 +55,7 @@ def render_frame_task(scenario_json: dict, root: str, frame_index: int, variant:
             "set render.variant in the scenario so that every worker uses the same one"
         )
     frame = engine.render(frame_index)
-    record, _ = finish_frame(engine, Path(root), frame, _ENCODERS[0])
+    record, _ = write_frame(engine, Path(root), sense_frame(engine, frame), _ENCODERS[0])
     return record
 
 

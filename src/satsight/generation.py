@@ -23,6 +23,7 @@ from pathlib import Path
 import yaml
 
 from satsight.config.scenario import Scenario
+from satsight.config.yaml_safety import load_yaml_file
 from satsight.dataset.frame_files import write_frame_files
 from satsight.dataset.journal import JournalWriter, read_journal, write_bytes_atomic
 from satsight.dataset.manifest import (
@@ -39,8 +40,9 @@ from satsight.scene.obj_export import write_obj
 ProgressCallback = Callable[[int, int], None]
 # Threads that encode one frame's files (PNG and EXR encoders release the GIL).
 ENCODER_THREADS = 3
-# Frames rendered but not yet committed: one being finished while the next renders.
-MAX_FRAMES_IN_FLIGHT = 2
+# Frames rendered but not yet committed: one being written, one in the sensor, one
+# rendering (about 0.5 GB each at 4096 x 4112).
+MAX_FRAMES_IN_FLIGHT = 3
 
 
 @dataclass(frozen=True)
@@ -155,9 +157,9 @@ def _check_same_dataset(root: Path, manifest: dict, scenario: Scenario) -> None:
         return
     if stored.get("scenario_sha256") != manifest["scenario_sha256"]:
         try:
-            old = yaml.safe_load((root / "scenario.yaml").read_text(encoding="utf-8"))
+            old = load_yaml_file(root / "scenario.yaml")  # the folder may not be ours
             keys = _differences(old if isinstance(old, dict) else {}, _scenario_json(scenario))
-        except (OSError, yaml.YAMLError):
+        except SatsightError:
             keys = []
         where = f" (differs in {', '.join(keys[:6])})" if keys else ""
         raise SatsightError(
@@ -227,8 +229,8 @@ def prepare_folder(
     if occupied:
         if not is_dataset(out_dir):
             raise SatsightError(
-                f"output folder {out_dir} is not empty and holds no satsight dataset; "
-                "choose an empty or new folder"
+                f"output folder {out_dir} is not empty and holds no satsight dataset "
+                "(--overwrite replaces only satsight datasets); choose an empty or new folder"
             )
         if overwrite:
             shutil.rmtree(out_dir)
@@ -261,20 +263,36 @@ def _write_dataset_files(root: Path, engine: FrameEngine) -> None:
     write_obj(engine.mesh, root / "model" / "target.obj")
 
 
-def finish_frame(
-    engine: FrameEngine, root: Path, frame: RenderedFrame, encoders: ThreadPoolExecutor | None
-) -> tuple[dict, dict[str, float]]:
-    """Sensor, labels and files of a rendered frame; its journal record and stage times."""
+@dataclass
+class SensedFrame:
+    """A frame after labels, optics and detector: its record (without files) and arrays."""
+
+    record: dict
+    arrays: object
+    crop_box: tuple | None
+    sensor_s: float
+
+
+def sense_frame(engine: FrameEngine, frame: RenderedFrame) -> SensedFrame:
+    """Labels, optics and detector of a rendered frame."""
     t0 = time.perf_counter()
     record, arrays, box = engine.finish(frame)
-    t1 = time.perf_counter()
+    return SensedFrame(record, arrays, box, time.perf_counter() - t0)
+
+
+def write_frame(
+    engine: FrameEngine, root: Path, sensed: SensedFrame, encoders: ThreadPoolExecutor | None
+) -> tuple[dict, dict[str, float]]:
+    """Write a sensed frame's files; its journal record and stage times (s)."""
+    t0 = time.perf_counter()
     outputs = engine.scenario.outputs
+    record = sensed.record
     files, crop_files, checksums = write_frame_files(
         root,
-        frame.frame_index,
-        arrays,
+        record["frame_index"],
+        sensed.arrays,
         outputs.file_keys(),
-        box,
+        sensed.crop_box,
         outputs.crop is None or outputs.crop.full_frame,
         encoders,
     )
@@ -282,7 +300,7 @@ def finish_frame(
     if "crop" in record:
         record["crop"]["files"] = crop_files
     record["checksums"] = checksums
-    return record, {"sensor": t1 - t0, "files": time.perf_counter() - t1}
+    return record, {"sensor": sensed.sensor_s, "files": time.perf_counter() - t0}
 
 
 def _run_local(
@@ -293,10 +311,12 @@ def _run_local(
     stop: StopFlag,
     times: dict[str, list[float]],
 ) -> None:
-    """Render the frames of ``todo`` in this process, one rendering while the one before
-    goes through the sensor and its files are encoded."""
+    """Render the frames of ``todo`` in this process as a three-stage pipeline: frame k+2
+    renders while frame k+1 goes through the sensor and frame k's files are encoded (on
+    ``ENCODER_THREADS`` threads), so that every core stays busy."""
     with (
-        ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-finish") as finisher,
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-sensor") as sensor,
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-writer") as writer,
         ThreadPoolExecutor(ENCODER_THREADS, thread_name_prefix="satsight-encode") as encoders,
     ):
         pending: deque = deque()
@@ -307,6 +327,9 @@ def _run_local(
                 times.setdefault(name, []).append(seconds)
             commit(record)
 
+        def sense_then_write(sensed_future) -> tuple[dict, dict[str, float]]:
+            return write_frame(engine, root, sensed_future.result(), encoders)
+
         try:
             for frame_index in todo:
                 if stop.is_set():
@@ -314,8 +337,9 @@ def _run_local(
                 t0 = time.perf_counter()
                 frame = engine.render(frame_index)
                 times.setdefault("render", []).append(time.perf_counter() - t0)
-                pending.append(finisher.submit(finish_frame, engine, root, frame, encoders))
-                del frame
+                sensed = sensor.submit(sense_frame, engine, frame)
+                pending.append(writer.submit(sense_then_write, sensed))
+                del frame, sensed
                 while len(pending) >= MAX_FRAMES_IN_FLIGHT:
                     commit_oldest()
             while pending:

@@ -6,7 +6,7 @@ Output names and what they hold:
 - ``dn_png16``: uint16 (H, W) raw DN. ``preview_png8``: uint8 (H, W).
 - ``object_mask_png``: uint8 (H, W), values 0 and 255 only.
 - ``part_mask_png16``: uint16 (H, W) part ids.
-- ``radiance_exr``: float32 R, G, B as (H, W, 3), W m^-2 sr^-1, finite and >= 0.
+- ``radiance_exr``: float32 R, G, B, each (H, W), W m^-2 sr^-1, finite and >= 0.
 - ``depth_exr``: float32 Z (H, W), metres, finite and >= 0.
 - ``normals_exr``: float32 X, Y, Z, each pixel a unit vector or exactly zero.
 """
@@ -44,8 +44,8 @@ def _first_pixel(bad: np.ndarray) -> str:
     return f"{int(bad.sum())} pixel(s), the first at (x={x}, y={y})"
 
 
-def _decode_exr(path: Path, channels: tuple[str, ...]) -> np.ndarray:
-    """The named channels of an OpenEXR file as (H, W) for one, (H, W, C) for several."""
+def _decode_exr(path: Path, channels: tuple[str, ...]) -> list[np.ndarray]:
+    """The named channels of an OpenEXR file, each an (H, W) float32 plane."""
     with OpenEXR.File(str(path), separate_channels=True) as exr:
         stored = {name: channel.pixels for name, channel in exr.channels().items()}
     missing = [name for name in channels if name not in stored]
@@ -58,22 +58,40 @@ def _decode_exr(path: Path, channels: tuple[str, ...]) -> np.ndarray:
         raise ValueError(
             f"expected float32 channels, found {', '.join(str(p.dtype) for p in planes)}"
         )
-    return planes[0].copy() if len(planes) == 1 else np.stack(planes, axis=-1)
+    return planes
 
 
-def _bad_values(key: str, image: np.ndarray) -> tuple[np.ndarray, str] | None:
-    """(H, W) pixels breaking the value rule of output ``key``, and the rule; None if none."""
+def _finite_non_negative(planes: list[np.ndarray]) -> np.ndarray | None:
+    """(H, W) pixels with a channel negative, NaN or infinite; None when there are none."""
+    # Fast path: min and max are single passes, and a NaN makes the comparison fail.
+    if all(p.size == 0 or (p.min() >= 0 and p.max() < np.inf) for p in planes):
+        return None
+    bad = np.zeros(planes[0].shape, dtype=bool)
+    for plane in planes:
+        bad |= ~((plane >= 0) & (plane < np.inf))
+    return bad
+
+
+def _bad_values(key: str, planes: list[np.ndarray]) -> tuple[np.ndarray | None, str] | None:
+    """(H, W) pixels breaking the value rule of output ``key`` (None: no pixel does), and the
+    rule; None when the output has no value rule."""
     if key == "object_mask_png":
-        return (image != 0) & (image != 255), "values 0 and 255 only"
+        # 0 and 255 are exactly the values that wrap to 1 and 0 when one is added.
+        bad = (planes[0] + np.uint8(1)) > 1
+        return (bad if bad.any() else None), "values 0 and 255 only"
     if key == "radiance_exr":
-        return ~(np.isfinite(image) & (image >= 0)).all(axis=-1), "finite radiance >= 0"
+        return _finite_non_negative(planes), "finite radiance >= 0"
     if key == "depth_exr":
-        return ~(np.isfinite(image) & (image >= 0)), "finite depth >= 0"
+        return _finite_non_negative(planes), "finite depth >= 0"
     if key == "normals_exr":
+        x, y, z = planes
+        squared = x * x
+        squared += y * y
+        squared += z * z
+        low, high = (1.0 - UNIT_NORMAL_TOLERANCE) ** 2, (1.0 + UNIT_NORMAL_TOLERANCE) ** 2
         with np.errstate(invalid="ignore"):
-            norm = np.sqrt(np.einsum("...i,...i->...", image, image))  # float32, no copy
-            unit = np.abs(norm - 1.0) <= UNIT_NORMAL_TOLERANCE
-        return ~(unit | (image == 0).all(axis=-1)), "unit or zero normals"
+            bad = ~((squared == 0) | ((squared >= low) & (squared <= high)))
+        return (bad if bad.any() else None), "unit or zero normals"
     return None
 
 
@@ -86,8 +104,9 @@ def read_frame_file(
     hashes: bool,
     findings: Findings,
     frame: int | None,
-) -> np.ndarray | None:
-    """Check one file of a frame and return its decoded image (None when unusable).
+) -> np.ndarray | tuple[np.ndarray, ...] | None:
+    """Check one file of a frame and return its decoded image: (H, W) for a one-channel
+    file, a tuple of (H, W) planes for several (R, G, B; X, Y, Z); None when unusable.
 
     relative: the path relative to ``root``. key: its output name (``dn_png16`` ...).
     shape_hw: the expected (H, W) in pixels, None when unknown. checksum: the record's
@@ -121,32 +140,27 @@ def read_frame_file(
         return None
     try:
         if key in PNG_TYPES:
-            image = imagecodecs.png_decode(data)
+            planes = [imagecodecs.png_decode(data)]
         else:
-            image = _decode_exr(path, EXR_CHANNELS[key])
+            planes = _decode_exr(path, EXR_CHANNELS[key])
     except Exception as error:  # any decoder failure is a problem of the file
         kind = "PNG" if key in PNG_TYPES else "OpenEXR"
         problem(
             "files", f"expected a readable {kind} image, found one that does not decode ({error})"
         )
         return None
-    expected_dtype = PNG_TYPES.get(key, np.float32)
-    channels = len(EXR_CHANNELS.get(key, ()))
-    expected_shape = None
-    if shape_hw is not None:
-        expected_shape = (*shape_hw, 3) if channels == 3 else tuple(shape_hw)
-    if image.dtype != expected_dtype or (
-        expected_shape is not None and image.shape != expected_shape
+    del data
+    expected_dtype = np.dtype(PNG_TYPES.get(key, np.float32))
+    if any(p.dtype != expected_dtype or p.ndim != 2 for p in planes) or (
+        shape_hw is not None and any(p.shape != tuple(shape_hw) for p in planes)
     ):
-        want = "x".join(map(str, expected_shape)) if expected_shape else "(H, W)"
-        problem(
-            "files",
-            f"expected {np.dtype(expected_dtype).name} {want}, found {image.dtype.name} "
-            f"{'x'.join(map(str, image.shape))}",
-        )
+        want = "x".join(map(str, shape_hw)) if shape_hw is not None else "(H, W)"
+        found = ", ".join(f"{p.dtype.name} {'x'.join(map(str, p.shape))}" for p in planes)
+        names = f" channels {', '.join(EXR_CHANNELS[key])}" if key in EXR_CHANNELS else ""
+        problem("files", f"expected {expected_dtype.name} {want}{names}, found {found}")
         return None
-    rule = _bad_values(key, image)
-    if rule is not None and rule[0].any():
+    rule = _bad_values(key, planes)
+    if rule is not None and rule[0] is not None:
         problem("files", f"expected {rule[1]}, found others in {_first_pixel(rule[0])}")
         return None
-    return image
+    return planes[0] if len(planes) == 1 else tuple(planes)

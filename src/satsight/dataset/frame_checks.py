@@ -8,7 +8,8 @@ Tolerances, and why:
   ``header["target"]["keypoints_body_m"]`` through K and the pose. Relative, because a
   corner near the camera plane projects thousands of pixels off the image, where rounding
   grows with the coordinate; 1e-6 is ten orders above float64 rounding, and a pose error it
-  would miss moves a point by less than a millionth of its distance from the origin.
+  would miss moves a keypoint by less than a millionth of its pixel coordinates (0.004 px
+  at the far corner of a 4096-pixel image).
 - Depth inside the depth range of the target's bounding box under the pose, to
   ``DEPTH_RTOL`` of the range (float32 depth) plus ``DEPTH_ATOL_M``; mask box inside the
   box of the projected corners, to ``BBOX_MARGIN_PX`` (a pixel is in the mask when its
@@ -76,6 +77,7 @@ class FrameCheck:
         images = self.read_files(self.frame.get("files") or {}, shape)
         self.check_images(images, self.frame, self.frame.get("files") or {}, "masks")
         if images.get("object_mask_png") is not None:
+            self.findings.ran("masks")
             mask_file = self.frame["files"]["object_mask_png"]
             self.check_mask_counts(images["object_mask_png"] == 255, self.frame, mask_file, "masks")
         if points_cam is not None:
@@ -92,8 +94,9 @@ class FrameCheck:
         Only the images the later checks compare (masks, depth) are kept in memory.
         """
         checksums = self.frame.get("checksums") or {}
-        images = {
-            key: read_frame_file(
+        images = {}
+        for key, relative in files.items():
+            image = read_frame_file(
                 self.root,
                 relative,
                 key,
@@ -103,9 +106,8 @@ class FrameCheck:
                 self.findings,
                 self.index,
             )
-            for key, relative in files.items()
-        }
-        return {key: images[key] if key in KEPT_IMAGES else None for key in images}
+            images[key] = image if key in KEPT_IMAGES else None
+        return images
 
     def check_checksum_entries(self) -> None:
         """Every checksum entry names one of the frame's files."""
@@ -221,7 +223,6 @@ class FrameCheck:
         mask = images.get("object_mask_png")
         if mask is None:
             return
-        self.findings.ran(check)
         on = mask == 255
         box = mask_bbox_xyxy_px(on)
         if "bbox_xyxy_px" in labels and labels["bbox_xyxy_px"] != box:

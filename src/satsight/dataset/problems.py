@@ -14,7 +14,7 @@ CHECKS = {
     "complete": "complete.json present, its frame count and SHA-256 sums match",
     "manifest": "labels.json without its frames equals manifest.json",
     "journal": "labels.json frames equal the journal records",
-    "indices": "frame indices 0 .. n-1, each once, n = manifest frame_count",
+    "indices": "frame indices 0 .. n-1 once each (n: manifest frame_count), plan indices",
     "files": "files exist, decode, and have the promised type, shape and values",
     "checksums": "file sizes and SHA-256 equal the frame's checksums",
     "pose": "unit quaternion with qw >= 0; keypoints, depths and range reproject from the pose",

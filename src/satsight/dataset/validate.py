@@ -82,7 +82,7 @@ def _check_summary(root: Path, frame_count: int | None, findings: Findings) -> N
         findings.add(
             "complete",
             f"expected frame_count {frame_count} (from {MANIFEST_NAME}), found "
-            f"{summary['frame_count']}",
+            f"{summary.get('frame_count')!r}",
             file=COMPLETE_NAME,
         )
     for name, key in ((LABELS_NAME, "labels_sha256"), (JOURNAL_NAME, "journal_sha256")):
@@ -111,7 +111,9 @@ def _check_summary(root: Path, frame_count: int | None, findings: Findings) -> N
         )
 
 
-def _check_labels(root: Path, manifest: dict, journal: list[dict] | None, findings: Findings):
+def _check_labels(
+    root: Path, manifest: dict, journal: list[dict] | None, findings: Findings
+) -> list | None:
     """labels.json: header equal to the manifest, frames equal to the journal records.
 
     Returns labels.json's frames (None when it cannot be read).
@@ -125,9 +127,7 @@ def _check_labels(root: Path, manifest: dict, journal: list[dict] | None, findin
     except (SatsightError, KeyError) as error:
         findings.add("manifest", f"expected a frames list, found: {error}", file=LABELS_NAME)
         return None
-    differ = sorted(
-        set(labels) ^ set(manifest) | {k for k in labels if labels[k] != manifest.get(k)}
-    )
+    differ = sorted(k for k in set(labels) | set(manifest) if labels.get(k) != manifest.get(k))
     if differ:
         findings.add(
             "manifest",
@@ -218,6 +218,16 @@ def _check_indices(
             )
         seen.add(index)
         previous = max(previous, index)
+        plan_indices = manifest.get("plan_indices")
+        if isinstance(plan_indices, list) and index < len(plan_indices):
+            if frame.get("plan_index") != plan_indices[index]:
+                findings.add(
+                    "indices",
+                    f"expected plan_index {plan_indices[index]} (manifest plan_indices), "
+                    f"found {frame.get('plan_index')!r}",
+                    index,
+                    record_file,
+                )
     missing = sorted(expected - seen)
     if complete and missing:
         shown = ", ".join(map(str, missing[:10])) + (", ..." if len(missing) > 10 else "")
@@ -297,7 +307,18 @@ def validate_dataset(
     records = [f for f in frames if isinstance(f, dict)]
 
     def check(frame: dict) -> Findings:
-        return FrameCheck(root, frame, keypoints, record_file, hashes).run()
+        try:
+            return FrameCheck(root, frame, keypoints, record_file, hashes).run()
+        except Exception as error:  # a record of an unexpected form: a problem, not a crash
+            found = Findings()
+            found.add(
+                "files",
+                f"expected a frame record as docs/dataset_format.md describes, found one "
+                f"that cannot be checked ({type(error).__name__}: {error})",
+                frame.get("frame_index"),
+                record_file,
+            )
+            return found
 
     threads = workers or min(4, os.cpu_count() or 1)
     with ThreadPoolExecutor(max_workers=threads) as pool:
@@ -317,8 +338,12 @@ def summary_table(report: ValidationReport):
         title=f"{report.root}: {state}, {report.frames_checked} of {report.frame_count} "
         f"frames checked, {len(report.findings.problems)} problem(s)"
     )
-    for column, justify in (("check", "left"), ("what", "left"), ("items", "right"),
-                            ("problems", "right")):  # fmt: skip
+    for column, justify in (
+        ("check", "left"),
+        ("what", "left"),
+        ("items", "right"),
+        ("problems", "right"),
+    ):
         table.add_column(column, justify=justify)
     for name, (checked, found) in report.findings.counts().items():
         style = "red" if found else ("green" if checked else "dim")

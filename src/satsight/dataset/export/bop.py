@@ -35,6 +35,7 @@ from satsight.dataset.export.source import (
     read_gray8,
     read_mask,
     require_file,
+    require_image,
 )
 from satsight.dataset.image_files import encode_png
 from satsight.dataset.labels import mask_bbox_xyxy_px
@@ -115,9 +116,8 @@ def _frame_entries(
 ) -> tuple[dict, dict, dict, str]:
     """Write one image's files; its scene_camera, scene_gt and scene_gt_info entries."""
     im = f"{frame.frame_index:06d}"
-    if "preview_png8" in frame.files:
-        source = require_file(frame, "preview_png8", _PURPOSE)
-        shutil.copyfile(source, scene_dir / "gray" / f"{im}.png")
+    if "preview_png8" in frame.files:  # already the 8-bit image: copied as it is
+        shutil.copyfile(require_image(frame, _PURPOSE), scene_dir / "gray" / f"{im}.png")
         image_key = "preview_png8"
     else:
         gray, image_key = read_gray8(frame, header, _PURPOSE)
@@ -197,7 +197,10 @@ def write_bop(dataset: Dataset, splits: dict[str, list[ExportFrame]], root: Path
     frames = [f for split in splits.values() for f in split]
     with_depth = all("depth_exr" in f.files for f in frames)
     for frame in frames:  # fail before writing anything large
+        require_image(frame, _PURPOSE)
         require_file(frame, "object_mask_png", "BOP's masks and scene_gt_info.json")
+        if with_depth:
+            require_file(frame, "depth_exr", _PURPOSE)
     model = dataset.header.get("target", {}).get("model_obj", "model/target.obj")
     info_entry = write_bop_model(dataset.root / model, root / "models", OBJ_ID)
     write_bop_json(root / "models" / "models_info.json", {OBJ_ID: info_entry})
@@ -217,12 +220,10 @@ def write_bop(dataset: Dataset, splits: dict[str, list[ExportFrame]], root: Path
             ]
     if targets:
         write_bop_json(root / "test_targets_bop19.json", targets)
-    notes = [
-        "gray: 8-bit previews"
-        if sources == {"preview_png8"}
-        else "gray: 8-bit previews or DN stretched to 8 bits"
-        if len(sources) > 1
-        else "gray: DN stretched to 8 bits (no previews)"
-    ]
-    notes.append("depth: 16-bit PNG, per-image depth_scale" if with_depth else "no depth")
+    gray = {
+        frozenset({"preview_png8"}): "gray: 8-bit previews",
+        frozenset({"dn_png16"}): "gray: DN stretched to 8 bits (no previews)",
+    }.get(frozenset(sources), "gray: 8-bit previews, DN stretched where none")
+    depth = "depth: 16-bit PNG, per-image depth_scale" if with_depth else "no depth"
+    notes = [gray, depth]
     return notes

@@ -14,21 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
+from satsight.config.outputs import OUTPUT_FILE_KEYS
 from satsight.dataset.image_files import read_exr, read_png
 from satsight.dataset.preview import dn_preview_uint8
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
 
 #: The scenario's ``outputs.files`` name that writes each file key (for error messages).
-OUTPUT_OF_KEY = {
-    "dn_png16": "dn",
-    "preview_png8": "preview",
-    "radiance_exr": "radiance",
-    "depth_exr": "depth",
-    "normals_exr": "normals",
-    "object_mask_png": "masks",
-    "part_mask_png16": "masks",
-}
+OUTPUT_OF_KEY = {key: name for name, keys in OUTPUT_FILE_KEYS.items() for key in keys}
 
 
 @dataclass(frozen=True)
@@ -37,9 +30,8 @@ class ExportFrame:
 
     frame_index: the frame's number in the dataset. q_cam_from_body: (4,) scalar-first
     Hamilton quaternion. t_cam_from_body_m: (3,) metres, camera frame (OpenCV axes).
-    K: (3, 3) intrinsics of this view, pixels. size_px: (W, H). bbox_xyxy_px: inclusive
-    [x_min, y_min, x_max, y_max] of the object mask in this view, or None. files: file
-    key -> absolute path of this view's files.
+    K: (3, 3) intrinsics of this view, pixels. size_px: (W, H). files: file key ->
+    absolute path of this view's files. crop: whether this view is the frame's crop.
     """
 
     frame_index: int
@@ -47,8 +39,6 @@ class ExportFrame:
     t_cam_from_body_m: np.ndarray
     K: np.ndarray
     size_px: tuple[int, int]
-    bbox_xyxy_px: list[int] | None
-    keypoints_px: list
     files: dict[str, Path]
     crop: bool
 
@@ -58,29 +48,27 @@ def uses_crops(dataset: Dataset, crop_requested: bool) -> bool:
     frames = dataset.frames
     if not frames:
         raise SatsightError(f"{dataset.root} holds no frames; there is nothing to export")
-    with_crop = [f for f in frames if f.get("crop") and f["crop"].get("files")]
-    crop_only = [f for f in frames if not f.get("files")]
-    if crop_only and len(with_crop) < len(frames):
-        missing = sorted(
-            set(f["frame_index"] for f in frames) - {f["frame_index"] for f in with_crop}
-        )
+    has_crop = [bool((f.get("crop") or {}).get("files")) for f in frames]
+    crop_only = [not f.get("files") for f in frames]
+    for frame, cropped, bare in zip(frames, has_crop, crop_only, strict=True):
+        if bare and not cropped:
+            raise SatsightError(
+                f"{dataset.root}: frame {frame['frame_index']} has neither full-frame files "
+                "nor a crop; the dataset is damaged: regenerate it"
+            )
+    if not (crop_requested or any(crop_only)):
+        return False
+    if not any(has_crop):
         raise SatsightError(
-            f"{dataset.root}: frame {missing[0]} has neither full-frame files nor a crop; "
-            "the dataset is damaged: regenerate it"
+            f"--crop: {dataset.root} has no crops; generate it with outputs.crop "
+            "(e.g. outputs: {crop: {size_px: 256}}) or export the full frames without --crop"
         )
-    if crop_requested or crop_only:
-        if not with_crop:
-            raise SatsightError(
-                f"--crop: {dataset.root} has no crops; generate it with outputs.crop "
-                "(e.g. outputs: {crop: {size_px: 256}}) or export the full frames without --crop"
-            )
-        if len(with_crop) < len(frames):
-            raise SatsightError(
-                f"--crop: only {len(with_crop)} of {len(frames)} frames of {dataset.root} "
-                "have a crop; export the full frames without --crop"
-            )
-        return True
-    return False
+    if not all(has_crop):
+        raise SatsightError(
+            f"--crop: only {sum(has_crop)} of {len(frames)} frames of {dataset.root} have a "
+            "crop; export the full frames without --crop"
+        )
+    return True
 
 
 def export_frame(dataset: Dataset, record: dict, crop: bool) -> ExportFrame:
@@ -98,8 +86,6 @@ def export_frame(dataset: Dataset, record: dict, crop: bool) -> ExportFrame:
         t_cam_from_body_m=np.asarray(record["t_cam_from_body_m"], dtype=np.float64),
         K=np.asarray(view["K"], dtype=np.float64),
         size_px=size,
-        bbox_xyxy_px=view.get("bbox_xyxy_px"),
-        keypoints_px=list(view.get("keypoints_px") or []),
         files=files,
         crop=crop,
     )
@@ -138,24 +124,30 @@ def dn_stretch(header: dict) -> tuple[float, float]:
     return bias, min(full_well, adc_max)
 
 
+def require_image(frame: ExportFrame, purpose: str) -> Path:
+    """The path of the frame's 8-bit preview, else its DN image, or a SatsightError."""
+    for key in ("preview_png8", "dn_png16"):
+        if key in frame.files:
+            return require_file(frame, key, purpose)
+    raise SatsightError(
+        f"{purpose} needs an image, and {'crop' if frame.crop else 'frame'} "
+        f"{frame.frame_index} has neither preview_png8 nor dn_png16; regenerate the dataset "
+        "with 'preview' or 'dn' in outputs.files"
+    )
+
+
 def read_gray8(frame: ExportFrame, header: dict, purpose: str) -> tuple[np.ndarray, str]:
     """The frame's 8-bit grey image and the file key it came from.
 
     The 8-bit preview when the dataset has it; otherwise the raw DN with the preview's
     stretch (black at the bias, white at full well, gamma 2.2: ``dn_preview_uint8``).
     """
+    path = require_image(frame, purpose)
     if "preview_png8" in frame.files:
-        image = read_png(require_file(frame, "preview_png8", purpose))
-        return _grey(image, frame, np.uint8), "preview_png8"
-    if "dn_png16" in frame.files:
-        dn = _grey(read_png(require_file(frame, "dn_png16", purpose)), frame, np.uint16)
-        bias, full_well = dn_stretch(header)
-        return dn_preview_uint8(dn, bias, full_well), "dn_png16"
-    raise SatsightError(
-        f"{purpose} needs an image, and {'crop' if frame.crop else 'frame'} "
-        f"{frame.frame_index} has neither preview_png8 nor dn_png16; regenerate the dataset "
-        "with 'preview' or 'dn' in outputs.files"
-    )
+        return _grey(read_png(path), frame, np.uint8), "preview_png8"
+    dn = _grey(read_png(path), frame, np.uint16)
+    bias, full_well = dn_stretch(header)
+    return dn_preview_uint8(dn, bias, full_well), "dn_png16"
 
 
 def read_mask(frame: ExportFrame, purpose: str) -> np.ndarray:

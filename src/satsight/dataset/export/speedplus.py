@@ -15,12 +15,13 @@ transpose is used to map the target's body points into the camera frame,
 q, so ``q_vbs2tango_true`` has the same components as satsight's ``q_cam_from_body`` and
 ``r_Vo2To_vbs_true`` (metres, camera frame) is ``t_cam_from_body_m``.
 
-Pixel convention: SPEED and SPEED+ put the principal point at (Nu / 2, Nv / 2) (SPEED+
-camera.json: ccx = 960, ccy = 600 for 1920 x 1200 px), the sensor centre when pixel
-coordinates are measured from the outer corner of the top-left pixel. satsight measures
-them from that pixel's centre (image centre ((W - 1) / 2, (H - 1) / 2)), so the export
-adds 0.5 px to the principal point: a point projected with the exported labels lands at
-satsight's pixel position + (0.5, 0.5), the same spot on the sensor.
+Pixel convention: SPEED and SPEED+ put the principal point at (Nu / 2, Nv / 2) (ESA
+speed-utils utils.py class ``Camera``: K = [[fx / ppx, 0, nu / 2], [0, fy / ppy, nv / 2],
+[0, 0, 1]]; SPEED+ camera.json: ccx = 960, ccy = 600 for 1920 x 1200 px), the sensor
+centre when pixel coordinates are measured from the outer corner of the top-left pixel.
+satsight measures them from that pixel's centre (image centre ((W - 1) / 2, (H - 1) / 2)),
+so the export adds 0.5 px to the principal point: a point projected with the exported
+labels lands at satsight's pixel position + (0.5, 0.5), the same spot on the sensor.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from satsight.dataset.export.source import ExportFrame, read_gray8, require_file
+from satsight.dataset.export.source import ExportFrame, read_gray8, require_image
 from satsight.dataset.image_files import encode_png
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
@@ -43,6 +44,15 @@ PIXEL_OFFSET_PX = 0.5
 LABEL_FILES = {"train": "train.json", "val": "validation.json", "test": "test.json"}
 DEFAULT_DOMAIN = "synthetic"
 _PURPOSE = "the SPEED+ export"
+
+
+def json_text(content: dict | list) -> str:
+    """JSON with one top-level key (or list element) per line, values compact."""
+    if isinstance(content, dict):
+        lines = [f"  {json.dumps(k)}: {json.dumps(v, allow_nan=False)}" for k, v in content.items()]
+        return "{\n" + ",\n".join(lines) + "\n}\n"
+    lines = [f"  {json.dumps(v, allow_nan=False)}" for v in content]
+    return "[\n" + ",\n".join(lines) + ("\n]\n" if lines else "]\n")
 
 
 def image_name(frame_index: int) -> str:
@@ -72,13 +82,16 @@ def _shared_camera(frames: list[ExportFrame]) -> tuple[np.ndarray, tuple[int, in
     K, size = frames[0].K, frames[0].size_px
     for frame in frames[1:]:
         if frame.size_px != size or not np.allclose(frame.K, K, rtol=0, atol=1e-9):
-            what = "crops" if frame.crop else "frames"
+            remedy = "export them with --format bop (per-image cam_K)"
+            if frame.crop:
+                remedy = (
+                    "a crop window moves with the target; " + remedy + " or, if the dataset "
+                    "keeps full frames, without --crop"
+                )
             raise SatsightError(
-                f"SPEED+ describes every image with one camera.json, but the {what} of this "
-                f"dataset have different intrinsics (frame {frame.frame_index} differs from "
-                f"frame {frames[0].frame_index}; a crop window moves with the target); "
-                "export them with --format bop (per-image cam_K)"
-                + (" or export the full frames without --crop" if frame.crop else "")
+                "SPEED+ describes every image with one camera.json, but frame "
+                f"{frame.frame_index} has other intrinsics than frame "
+                f"{frames[0].frame_index}: {remedy}"
             )
     return K, size
 
@@ -102,8 +115,8 @@ def camera_json(dataset: Dataset, K: np.ndarray, size: tuple[int, int]) -> dict:
         "Nv": int(size[1]),
         "ppx": pitch_x,
         "ppy": pitch_y,
-        "fx": float(K[0, 0] * pitch_x),
-        "fy": float(K[1, 1] * pitch_y),
+        "fx": focal_m,
+        "fy": focal_m,
         "ccx": float(matrix[0, 2]),
         "ccy": float(matrix[1, 2]),
     }
@@ -111,8 +124,8 @@ def camera_json(dataset: Dataset, K: np.ndarray, size: tuple[int, int]) -> dict:
 
 def _write_image(frame: ExportFrame, header: dict, images: Path) -> str:
     target = images / image_name(frame.frame_index)
-    if "preview_png8" in frame.files:
-        shutil.copyfile(require_file(frame, "preview_png8", _PURPOSE), target)
+    if "preview_png8" in frame.files:  # already the 8-bit image: copied as it is
+        shutil.copyfile(require_image(frame, _PURPOSE), target)
         return "preview_png8"
     gray, key = read_gray8(frame, header, _PURPOSE)
     target.write_bytes(encode_png(gray))
@@ -126,11 +139,8 @@ def write_speedplus(
     frames = [f for split in splits.values() for f in split]
     K, size = _shared_camera(frames)
     for frame in frames:  # fail before writing anything large
-        if not ({"preview_png8", "dn_png16"} & frame.files.keys()):
-            read_gray8(frame, dataset.header, _PURPOSE)  # raises with the remedy
-    (root / "camera.json").write_text(
-        json.dumps(camera_json(dataset, K, size), indent=2) + "\n", encoding="utf-8"
-    )
+        require_image(frame, _PURPOSE)
+    (root / "camera.json").write_text(json_text(camera_json(dataset, K, size)), encoding="utf-8")
     images = root / domain / "images"
     images.mkdir(parents=True)
     sources = set()
@@ -138,8 +148,6 @@ def write_speedplus(
         for frame in split_frames:
             sources.add(_write_image(frame, dataset.header, images))
         labels = [label_entry(frame) for frame in split_frames]
-        (root / domain / LABEL_FILES[name]).write_text(
-            json.dumps(labels, indent=1, allow_nan=False) + "\n", encoding="utf-8"
-        )
+        (root / domain / LABEL_FILES[name]).write_text(json_text(labels), encoding="utf-8")
     source = "8-bit previews" if sources == {"preview_png8"} else "DN stretched to 8 bits"
     return [f"images: {source}", "principal point shifted +0.5 px (SPEED+ pixel origin)"]

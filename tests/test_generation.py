@@ -1,0 +1,405 @@
+"""Datasets written frame by frame: resume after kill -9 or Ctrl-C, shards, Dask workers,
+output profiles and crops, all checked against an uninterrupted run byte for byte."""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from cli_runner import run_satsight
+from satsight.config.scenario import parse_scenario
+from satsight.dataset.image_files import read_exr, read_png
+from satsight.dataset.journal import read_journal
+from satsight.dataset.merge import merge_shards
+from satsight.dataset.reader import open_dataset
+from satsight.errors import SatsightError
+from satsight.generation import Shard, StopFlag, generate_dataset
+
+FRAME_COUNT = 12
+WIDTH_PX, HEIGHT_PX = 128, 96
+CROP_PX = 40
+
+
+def scenario_dict(**outputs) -> dict:
+    frames = [
+        {
+            "distance_km": 0.03 + 0.002 * i,
+            "azimuth_deg": 29.0 * i,
+            "elevation_deg": (i * 13) % 80 - 40,
+            "roll_deg": 7.0 * i,
+        }
+        for i in range(FRAME_COUNT - 1)
+    ]
+    frames.append({"distance_km": 50.0, "azimuth_deg": 10, "elevation_deg": 5, "roll_deg": 0})
+    return {
+        "name": "generation-test",
+        "seed": 7,
+        "camera": {"preset": "wide_field", "width_px": WIDTH_PX, "height_px": HEIGHT_PX},
+        "target": {"procedural": {"satellite_class": "two_wings", "seed": 1}},
+        "earth": {"azimuth_deg": 200, "elevation_deg": -60, "altitude_km": 500},
+        "frames": frames,
+        "render": {"bounces": 1},
+        "outputs": {"crop": {"size_px": CROP_PX}, **outputs},
+    }
+
+
+def file_hashes(root: Path) -> dict[str, str]:
+    """Relative path -> SHA-256 of every file under ``root`` (hidden files included)."""
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
+    }
+
+
+@pytest.fixture(scope="module")
+def scenario_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("scenario") / "scenario.yaml"
+    path.write_text(yaml.safe_dump(scenario_dict()), encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> Path:
+    """The dataset of an uninterrupted run in this process."""
+    out = tmp_path_factory.mktemp("reference") / "dataset"
+    summary = generate_dataset(parse_scenario(scenario_dict()), out)
+    assert summary.complete and summary.rendered == FRAME_COUNT
+    return out
+
+
+@pytest.fixture(scope="module")
+def reference_hashes(reference: Path) -> dict[str, str]:
+    return file_hashes(reference)
+
+
+# --- the folder ---------------------------------------------------------------------------
+def test_every_frame_is_in_the_journal_with_its_checksums(reference: Path) -> None:
+    dataset = open_dataset(reference)
+    assert dataset.complete and dataset.frame_count == FRAME_COUNT
+    assert [r["frame_index"] for r in read_journal(reference)] == list(range(FRAME_COUNT))
+    for frame in dataset.frames:
+        paths = set(frame["files"].values()) | set(frame["crop"]["files"].values())
+        assert set(frame["checksums"]) == paths
+        for relative, checksum in frame["checksums"].items():
+            data = (reference / relative).read_bytes()
+            assert len(data) == checksum["size_bytes"]
+            assert hashlib.sha256(data).hexdigest() == checksum["sha256"]
+    complete = json.loads((reference / "complete.json").read_text(encoding="utf-8"))
+    labels = (reference / "labels.json").read_bytes()
+    assert complete["labels_sha256"] == hashlib.sha256(labels).hexdigest()
+
+
+def test_a_second_run_writes_the_same_bytes(tmp_path: Path, reference_hashes) -> None:
+    generate_dataset(parse_scenario(scenario_dict()), tmp_path / "again")
+    assert file_hashes(tmp_path / "again") == reference_hashes
+
+
+def test_an_incomplete_dataset_is_refused_by_readers(tmp_path: Path, reference: Path) -> None:
+    copy = tmp_path / "copy"
+    shutil.copytree(reference, copy)
+    (copy / "complete.json").unlink()
+    with pytest.raises(SatsightError, match=r"incomplete dataset.*--resume"):
+        open_dataset(copy)
+    partial = open_dataset(copy, require_complete=False)
+    assert not partial.complete and len(partial.frames) == FRAME_COUNT
+
+
+# --- resume -------------------------------------------------------------------------------
+def _start(scenario_file: Path, out: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "satsight", "generate", str(scenario_file), "--out", str(out),
+         *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "COLUMNS": "200"},
+    )  # fmt: skip
+
+
+def _wait_for_commits(out: Path, count: int, process: subprocess.Popen) -> int:
+    """Wait until the journal holds ``count`` lines (or the run ends); the lines seen."""
+    journal = out / "journal.jsonl"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and process.poll() is None:
+        if journal.is_file() and journal.read_bytes().count(b"\n") >= count:
+            break
+        time.sleep(0.005)
+    return journal.read_bytes().count(b"\n") if journal.is_file() else 0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_kill_9_at_a_random_moment_then_resume_gives_the_same_bytes(
+    tmp_path: Path, scenario_file: Path, reference_hashes, seed: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    commits, delay_s = int(rng.integers(1, FRAME_COUNT - 2)), float(rng.uniform(0, 0.05))
+    out = tmp_path / "dataset"
+    process = _start(scenario_file, out)
+    _wait_for_commits(out, commits, process)
+    time.sleep(delay_s)
+    process.send_signal(signal.SIGKILL)
+    process.communicate()
+    assert not (out / "complete.json").exists()
+    refused = run_satsight("generate", str(scenario_file), "--out", str(out), cwd=tmp_path)
+    assert refused.returncode == 2 and "--resume" in refused.stderr
+    resumed = run_satsight(
+        "generate", str(scenario_file), "--out", str(out), "--resume", cwd=tmp_path
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    assert file_hashes(out) == reference_hashes
+
+
+def test_ctrl_c_stops_after_the_frame_in_flight_and_says_how_to_resume(
+    tmp_path: Path, scenario_file: Path, reference_hashes
+) -> None:
+    out = tmp_path / "dataset"
+    process = _start(scenario_file, out)
+    _wait_for_commits(out, 3, process)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    committed = len(read_journal(out))
+    assert 3 <= committed < FRAME_COUNT
+    assert f"{committed} of {FRAME_COUNT} frames committed" in stderr
+    assert "--resume" in stderr
+    # Every committed frame's files are whole; nothing is left under a temporary name.
+    assert not [p for p in out.rglob(".*") if ".tmp-" in p.name]
+    dataset = open_dataset(out, require_complete=False)
+    for frame in dataset.frames:
+        for relative, checksum in frame["checksums"].items():
+            assert (out / relative).stat().st_size == checksum["size_bytes"]
+    resumed = run_satsight(
+        "generate", str(scenario_file), "--out", str(out), "--resume", cwd=tmp_path
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    assert file_hashes(out) == reference_hashes
+
+
+def test_resume_drops_a_torn_journal_line_and_redoes_frames_with_missing_files(
+    tmp_path: Path, reference: Path, reference_hashes
+) -> None:
+    out = tmp_path / "dataset"
+    shutil.copytree(reference, out)
+    for name in ("complete.json", "labels.json", "contact_sheet.png"):
+        (out / name).unlink()
+    lines = (out / "journal.jsonl").read_bytes().splitlines(keepends=True)
+    (out / "journal.jsonl").write_bytes(b"".join(lines[:7]) + lines[7][:40])  # torn line 8
+    (out / "depth" / "frame_000002.exr").unlink()
+    (out / "images" / "frame_000004.png").write_bytes(b"\x89PNG cut")
+    (out / "images" / ".frame_000009.png.tmp-1234").write_bytes(b"half")
+    summary = generate_dataset(parse_scenario(scenario_dict()), out, resume=True)
+    assert summary.committed_before == 5  # frames 0, 1, 3, 5, 6
+    assert summary.rendered == FRAME_COUNT - 5
+    assert file_hashes(out) == reference_hashes
+
+
+def test_resume_refuses_another_scenario_naming_what_differs(
+    tmp_path: Path, reference: Path
+) -> None:
+    out = tmp_path / "dataset"
+    shutil.copytree(reference, out)
+    (out / "complete.json").unlink()
+    before = file_hashes(out)
+    other = scenario_dict()
+    other["seed"] = 8
+    with pytest.raises(SatsightError, match=r"another scenario \(differs in seed\)"):
+        generate_dataset(parse_scenario(other), out, resume=True)
+    assert file_hashes(out) == before
+
+
+def test_resume_of_a_complete_dataset_changes_nothing(tmp_path: Path, reference: Path) -> None:
+    out = tmp_path / "dataset"
+    shutil.copytree(reference, out)
+    before = file_hashes(out)
+    summary = generate_dataset(parse_scenario(scenario_dict()), out, resume=True)
+    assert summary.complete and summary.rendered == 0
+    assert file_hashes(out) == before
+
+
+def test_a_stop_flag_ends_the_run_after_the_frame_in_flight(tmp_path: Path) -> None:
+    stop = StopFlag()
+
+    def on_frame_done(done: int, total: int) -> None:
+        if done == 2:
+            stop.set()
+
+    summary = generate_dataset(
+        parse_scenario(scenario_dict()), tmp_path / "d", on_frame_done=on_frame_done, stop=stop
+    )
+    assert summary.interrupted and not summary.complete
+    # The frame rendering when the flag was set, and the one being finished, commit.
+    assert 2 <= summary.rendered <= 2 + 2
+    assert not (tmp_path / "d" / "complete.json").exists()
+
+
+def test_disk_full_names_the_path_keeps_committed_frames_and_resume_finishes(
+    tmp_path: Path, reference_hashes, monkeypatch
+) -> None:
+    import satsight.dataset.frame_files as frame_files
+
+    real_replace = os.replace
+    failing = {"frame_000005"}
+
+    def replace(source, target):
+        if any(stem in str(target) for stem in failing):
+            raise OSError(errno.ENOSPC, "No space left on device", str(target))
+        return real_replace(source, target)
+
+    monkeypatch.setattr(frame_files.os, "replace", replace)
+    out = tmp_path / "dataset"
+    with pytest.raises(SatsightError, match=r"could not write .*frame_000005.*--resume"):
+        generate_dataset(parse_scenario(scenario_dict()), out)
+    committed = {r["frame_index"] for r in read_journal(out)}
+    assert set(range(5)) <= committed and 5 not in committed
+    assert not [p for p in out.rglob(".*") if ".tmp-" in p.name]
+    failing.clear()  # space freed
+    generate_dataset(parse_scenario(scenario_dict()), out, resume=True)
+    assert file_hashes(out) == reference_hashes
+
+
+# --- shards and workers -------------------------------------------------------------------
+def test_shards_merged_give_the_same_bytes(tmp_path: Path, reference_hashes) -> None:
+    scenario = parse_scenario(scenario_dict())
+    shards = []
+    for k in range(3):
+        folder = tmp_path / f"shard{k}"
+        summary = generate_dataset(scenario, folder, shard=Shard(k, 3))
+        assert summary.complete and summary.frame_count == len(range(k, FRAME_COUNT, 3))
+        shards.append(folder)
+    with pytest.raises(SatsightError, match="not each of"):
+        merge_shards(shards[:2], tmp_path / "missing-one")
+    assert not (tmp_path / "missing-one").exists()
+    merge_shards(shards, tmp_path / "merged")
+    assert file_hashes(tmp_path / "merged") == reference_hashes
+
+
+def test_shards_of_different_scenarios_are_refused(tmp_path: Path) -> None:
+    one = generate_dataset(parse_scenario(scenario_dict()), tmp_path / "a", shard=Shard(0, 2))
+    other = scenario_dict()
+    other["seed"] = 99
+    two = generate_dataset(parse_scenario(other), tmp_path / "b", shard=Shard(1, 2))
+    assert one.complete and two.complete
+    with pytest.raises(SatsightError, match="another scenario"):
+        merge_shards([tmp_path / "a", tmp_path / "b"], tmp_path / "merged")
+
+
+def test_bad_shard_option_is_a_clear_error() -> None:
+    for text in ("3/2", "0/4", "one/two", "1"):
+        with pytest.raises(SatsightError, match="--shard"):
+            Shard.parse(text)
+
+
+def test_dask_workers_give_the_same_bytes(tmp_path: Path, scenario_file: Path, reference_hashes):
+    pytest.importorskip("dask.distributed")
+    for workers in ("1", "2"):
+        out = tmp_path / f"workers{workers}"
+        result = run_satsight(
+            "generate", str(scenario_file), "--out", str(out), "--workers", workers, cwd=tmp_path
+        )
+        assert result.returncode == 0, result.stderr
+        assert file_hashes(out) == reference_hashes, f"{workers} workers"
+
+
+def test_one_cpu_gives_the_same_bytes(tmp_path: Path, scenario_file: Path, reference_hashes):
+    """Under ``taskset -c 0`` the sensor's noise runs on one thread, the renderer on one
+    core: the bytes do not depend on the thread count."""
+    taskset = shutil.which("taskset")
+    if taskset is None:
+        pytest.skip("taskset is not installed")
+    out = tmp_path / "one-cpu"
+    result = subprocess.run(
+        [taskset, "-c", "0", sys.executable, "-m", "satsight", "generate", str(scenario_file),
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert file_hashes(out) == reference_hashes
+
+
+# --- output profiles and crops ------------------------------------------------------------
+def test_lean_outputs_write_dn_and_masks_only_with_the_same_labels(
+    tmp_path: Path, reference: Path
+) -> None:
+    out = tmp_path / "lean"
+    scenario = parse_scenario(scenario_dict(files=["dn", "masks"]))
+    generate_dataset(scenario, out)
+    lean, full = open_dataset(out), open_dataset(reference)
+    for a, b in zip(lean.frames, full.frames, strict=True):
+        assert set(a["files"]) == {"dn_png16", "object_mask_png", "part_mask_png16"}
+        for key in a["files"]:
+            assert (out / a["files"][key]).read_bytes() == (
+                reference / b["files"][key]
+            ).read_bytes()
+        strip = ("files", "checksums", "crop")
+        assert {k: v for k, v in a.items() if k not in strip} == {
+            k: v for k, v in b.items() if k not in strip
+        }
+    assert not (out / "radiance").exists() and not (out / "depth").exists()
+
+
+def test_crop_files_are_the_full_frame_cut_with_shifted_intrinsics(reference: Path) -> None:
+    dataset = open_dataset(reference)
+    for frame in dataset.frames:
+        crop = frame["crop"]
+        x0, y0, x1, y1 = crop["box_xyxy_px"]
+        assert (x1 - x0, y1 - y0) == (CROP_PX, CROP_PX) == (crop["size_px"],) * 2
+        assert 0 <= x0 and x1 <= WIDTH_PX and 0 <= y0 and y1 <= HEIGHT_PX
+        full_dn = read_png(dataset.path(frame, "dn_png16"))
+        crop_dn = read_png(dataset.path(frame, "dn_png16", crop=True))
+        np.testing.assert_array_equal(crop_dn, full_dn[y0:y1, x0:x1])
+        full_depth = read_exr(dataset.path(frame, "depth_exr"))["Z"]
+        crop_depth = read_exr(dataset.path(frame, "depth_exr", crop=True))["Z"]
+        np.testing.assert_array_equal(crop_depth, full_depth[y0:y1, x0:x1])
+        K, Kc = np.array(frame["K"]), np.array(crop["K"])
+        np.testing.assert_array_equal(Kc[:, :2], K[:, :2])
+        assert (Kc[0, 2], Kc[1, 2]) == (K[0, 2] - x0, K[1, 2] - y0)
+        # The target's box centre projects at the crop's centre pixel unless the crop was
+        # shifted inward at the image border.
+        for axis, extent in ((0, WIDTH_PX), (1, HEIGHT_PX)):
+            full = frame["keypoints_px"][-1][axis]
+            if CROP_PX // 2 <= np.floor(full + 0.5) <= extent - CROP_PX // 2:
+                assert np.floor(crop["keypoints_px"][-1][axis] + 0.5) == CROP_PX // 2
+        mask = read_png(dataset.path(frame, "object_mask_png", crop=True)) > 0
+        assert int(mask.sum()) == crop["object_pixel_count"]
+
+
+def test_crop_only_dataset_has_no_full_frame_files(tmp_path: Path) -> None:
+    out = tmp_path / "crops"
+    generate_dataset(parse_scenario(scenario_dict(crop={"size_px": 32, "full_frame": False})), out)
+    dataset = open_dataset(out)
+    for frame in dataset.frames:
+        assert frame["files"] == {}
+        assert set(frame["checksums"]) == set(frame["crop"]["files"].values())
+    assert not (out / "images").exists()
+    assert read_png(out / "contact_sheet.png").ndim == 3
+
+
+def test_outputs_option_and_crop_larger_than_the_image_are_refused(
+    tmp_path: Path, scenario_file: Path
+) -> None:
+    result = run_satsight(
+        "generate", str(scenario_file), "--out", str(tmp_path / "x"), "--outputs", "dn,exr",
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 2 and "unknown output exr" in result.stderr
+    result = run_satsight(
+        "generate", str(scenario_file), "--out", str(tmp_path / "x"), "--crop-px", "500",
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 2 and "outputs.crop.size_px (500) exceeds" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert not (tmp_path / "x").exists()
