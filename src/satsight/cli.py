@@ -455,13 +455,33 @@ def ablate(
 )
 @click.option("--no-scaling", is_flag=True, help="skip the bounces / samples scaling stages")
 @click.option(
+    "--dataset",
+    "dataset_frames",
+    default=None,
+    type=click.IntRange(min=3),
+    help="instead: time 'generate' end to end on N frames of the RSSF example "
+    "(4096x4112 and 1024x1024, all outputs and lean), in child processes",
+)
+@click.option(
     "--variant",
     default="auto",
     show_default=True,
     type=click.Choice(["auto", "llvm_ad_rgb", "cuda_ad_rgb"]),
 )
-def bench(frames: int, sizes: str, radiative_sizes: str, no_scaling: bool, variant: str) -> None:
-    """Time the render stage; prints JSON with median seconds per frame."""
+def bench(
+    frames: int,
+    sizes: str,
+    radiative_sizes: str,
+    no_scaling: bool,
+    variant: str,
+    dataset_frames: int | None,
+) -> None:
+    """Time the render stage (or, with --dataset, whole datasets); prints JSON."""
+    if dataset_frames is not None:
+        from satsight.dataset_benchmark import run_dataset_benchmark
+
+        click.echo(json.dumps(run_dataset_benchmark(dataset_frames), indent=2))
+        return
     from satsight.benchmark import parse_sizes_px, run_render_benchmark
 
     radiative = [] if radiative_sizes == "none" else parse_sizes_px(radiative_sizes)

@@ -24,7 +24,12 @@ import yaml
 
 from satsight.config.scenario import Scenario
 from satsight.config.yaml_safety import load_yaml_file
-from satsight.dataset.frame_files import write_frame_files
+from satsight.dataset.contact_sheet import (
+    contact_sheet_frames,
+    keep_thumbnail,
+    thumbnail_source,
+)
+from satsight.dataset.frame_files import FrameArrays, write_frame_files
 from satsight.dataset.journal import JournalWriter, read_journal, write_bytes_atomic
 from satsight.dataset.manifest import (
     finalize_dataset,
@@ -268,7 +273,7 @@ class SensedFrame:
     """A frame after labels, optics and detector: its record (without files) and arrays."""
 
     record: dict
-    arrays: object
+    arrays: FrameArrays
     crop_box: tuple | None
     sensor_s: float
 
@@ -300,6 +305,12 @@ def write_frame(
     if "crop" in record:
         record["crop"]["files"] = crop_files
     record["checksums"] = checksums
+    if outputs.contact_sheet and record["frame_index"] in contact_sheet_frames(engine.frame_count):
+        source = thumbnail_source(record)
+        if source is not None:
+            arrays = sensed.arrays.window(sensed.crop_box) if source[1] else sensed.arrays
+            dn = arrays.dn_image
+            keep_thumbnail(root, record, dn.dn, dn.bias_dn, dn.full_well_dn)
     return record, {"sensor": sensed.sensor_s, "files": time.perf_counter() - t0}
 
 

@@ -1,0 +1,147 @@
+"""Time ``satsight generate`` end to end: wall seconds per frame, CPU use and peak memory.
+
+Each case renders the bundled RSSF example (``rssf_dataset.yaml``, its first N frames, all
+seven distance intervals) into a fresh folder, in a child process of its own, so that its
+peak resident memory and CPU time are its own. Reported per case:
+
+* ``seconds_per_frame``: the run's wall time over its frame count, start-up (scenario,
+  plan, star catalogue, first kernel compilation) and the closing (labels.json, contact
+  sheet) included: what a user waits;
+* ``steady_seconds_per_frame``: the time between the first and the last frame's commit
+  over the frames in between: what each further frame of a long dataset costs;
+* ``cpu_percent``: CPU time (user + system, all threads) over wall time, in % of one core;
+* ``peak_rss_mb``: the child's peak resident memory;
+* ``stage_median_s``: median seconds per frame of the render, sensor and file stages (they
+  overlap in the pipeline, so they do not add up to the wall time);
+* ``megabytes_per_frame``: bytes written per frame.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from importlib import resources
+from pathlib import Path
+
+import yaml
+
+from satsight.errors import SatsightError
+
+#: (name, image size WIDTHxHEIGHT, outputs) of the default cases.
+DEFAULT_CASES = (
+    ("4k_all", (4096, 4112), "all"),
+    ("4k_lean", (4096, 4112), "lean"),
+    ("1k_all", (1024, 1024), "all"),
+    ("1k_lean", (1024, 1024), "lean"),
+)
+#: The paper's own figures (seconds per frame, end to end) for comparison.
+PAPER_SECONDS_PER_FRAME = {"sspt": 1.67, "rssf": 2.86}
+
+
+def _scenario(size_px: tuple[int, int], outputs: str, frames: int) -> dict:
+    from satsight.config.outputs import parse_outputs_option
+
+    path = resources.files("satsight") / "examples" / "rssf_dataset.yaml"
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    data["sampler"]["frame_count"] = frames
+    data["camera"] = {**data.get("camera", {}), "width_px": size_px[0], "height_px": size_px[1]}
+    data["outputs"] = {"files": list(parse_outputs_option(outputs))}
+    return data
+
+
+def run_case(size_px: tuple[int, int], outputs: str, frames: int, out_dir: Path) -> dict:
+    """One case in this process: generate the dataset and time it (see module docstring)."""
+    import resource
+
+    from satsight.config.scenario import parse_scenario
+    from satsight.generation import generate_dataset
+
+    scenario = parse_scenario(_scenario(size_px, outputs, frames), "benchmark")
+    commits: list[float] = []
+    cpu0, t0 = os.times(), time.perf_counter()
+    summary = generate_dataset(
+        scenario, out_dir, on_frame_done=lambda d, n: commits.append(time.perf_counter())
+    )
+    wall = time.perf_counter() - t0
+    cpu1 = os.times()
+    cpu = (cpu1.user - cpu0.user) + (cpu1.system - cpu0.system)
+    commits = commits[1:]  # the first call reports the frames already there (none)
+    written = sum(p.stat().st_size for p in out_dir.rglob("*") if p.is_file())
+    return {
+        "frames": summary.rendered,
+        "image_size_px": list(size_px),
+        "outputs": outputs,
+        "seconds_per_frame": wall / summary.rendered,
+        "steady_seconds_per_frame": (commits[-1] - commits[0]) / (len(commits) - 1),
+        "wall_s": wall,
+        "cpu_percent": 100.0 * cpu / wall,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "stage_median_s": {
+            name: statistics.median(times) for name, times in summary.stage_seconds.items()
+        },
+        "megabytes_per_frame": written / summary.rendered / 1e6,
+        "variant": summary.variant,
+    }
+
+
+def run_dataset_benchmark(
+    frames: int = 21, cases: tuple = DEFAULT_CASES, work_dir: Path | None = None
+) -> dict:
+    """Every case in a child process of its own; JSON-ready results."""
+    if frames < 3:
+        raise SatsightError("the dataset benchmark needs at least 3 frames per case")
+    results = {}
+    with tempfile.TemporaryDirectory(prefix="satsight-bench-", dir=work_dir) as tmp:
+        for name, size_px, outputs in cases:
+            out = Path(tmp) / name
+            command = [
+                sys.executable, "-m", "satsight.dataset_benchmark", "--case",
+                f"{size_px[0]}x{size_px[1]}", outputs, str(frames), str(out),
+            ]  # fmt: skip
+            done = subprocess.run(command, capture_output=True, text=True, check=False)
+            if done.returncode != 0:
+                raise SatsightError(f"benchmark case {name} failed:\n{done.stderr[-2000:]}")
+            results[name] = json.loads(done.stdout)
+    return {
+        "benchmark": "dataset",
+        "scenario": "examples/rssf_dataset.yaml (first N frames of the RSSF plan)",
+        "machine": {
+            "cpu_count": len(os.sched_getaffinity(0)),
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+        },
+        "paper_seconds_per_frame": PAPER_SECONDS_PER_FRAME,
+        "cases": results,
+    }
+
+
+def main(argv: list[str] | None = None) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=21, help="frames per case (>= 3)")
+    parser.add_argument(
+        "--case", nargs=4, metavar=("SIZE", "OUTPUTS", "FRAMES", "OUT"), help=argparse.SUPPRESS
+    )
+    args = parser.parse_args(argv)
+    try:
+        if args.case:
+            size, outputs, frames, out = args.case
+            width, height = (int(v) for v in size.split("x"))
+            result = run_case((width, height), outputs, int(frames), Path(out))
+        else:
+            result = run_dataset_benchmark(args.frames)
+    except SatsightError as error:
+        print(f"error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
