@@ -16,8 +16,9 @@ from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from satsight.camera.pinhole import PinholeCamera
+from satsight.config.outputs import OutputsConfig
+from satsight.dataset.frame_files import FrameArrays, write_frame_files
 from satsight.dataset.image_files import read_exr
-from satsight.dataset.writer import write_frame
 from satsight.frames.quaternion import (
     canonical_quaternion,
     matrix_from_quaternion,
@@ -201,7 +202,9 @@ def test_label_images_on_disk(tmp_path: Path) -> None:
         bias_dn=1000.0,
         full_well_dn=61000.0,
     )
-    files = write_frame(tmp_path, 0, image, dn_image)["files"]
+    files, _, _ = write_frame_files(
+        tmp_path, 0, FrameArrays(image, dn_image), OutputsConfig().file_keys(), None, True
+    )
     # Raw DN: 16-bit greyscale, exactly the detector's values.
     with Image.open(tmp_path / files["dn_png16"]) as png16:
         assert png16.mode == "I;16"

@@ -375,10 +375,3 @@ class FrameEngine:
                 "keypoints_body_m": mesh.keypoints_body_m.tolist(),
             },
         }
-
-
-def run_scenario(*args, **kwargs):
-    """Render a scenario into a dataset folder: ``satsight.generation.generate_dataset``."""
-    from satsight.generation import generate_dataset
-
-    return generate_dataset(*args, **kwargs)

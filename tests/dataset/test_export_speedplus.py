@@ -180,8 +180,6 @@ def test_bad_domain_is_refused(box: Path, tmp_path: Path) -> None:
 
 def test_rendered_dataset_projects_through_speedplus(tmp_path: Path) -> None:
     root = render_tiny_dataset(tmp_path / "dataset")
-    if root is None:
-        pytest.skip("run_scenario does not write a version-3 dataset yet")
     export_dataset(root, tmp_path / "out", "speedplus", SplitRule((1.0, 0.0, 0.0)))
     labels = json.loads((root / "labels.json").read_text())
     camera = json.loads((tmp_path / "out" / "camera.json").read_text())

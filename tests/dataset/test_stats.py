@@ -23,7 +23,7 @@ from satsight.dataset.stats import (
     histogram,
     write_stats,
 )
-from satsight.pipeline import run_scenario
+from satsight.generation import generate_dataset
 
 FRAME_COUNT = 14  # two per distance interval: six approach intervals and the hover
 
@@ -35,7 +35,7 @@ def dataset(tmp_path_factory) -> Path:
     config["camera"].update(width_px=96, height_px=80)
     config["sampler"]["frame_count"] = FRAME_COUNT
     out = tmp_path_factory.mktemp("stats") / "rssf"
-    run_scenario(parse_scenario(config, "test"), out)
+    generate_dataset(parse_scenario(config, "test"), out)
     return out
 
 

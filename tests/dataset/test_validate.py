@@ -23,7 +23,7 @@ from satsight.dataset.journal import record_line
 from satsight.dataset.manifest import json_bytes
 from satsight.dataset.validate import ValidationReport, validate_dataset
 from satsight.errors import SatsightError
-from satsight.pipeline import run_scenario
+from satsight.generation import generate_dataset
 
 FRAME_COUNT = 4
 CROP_PX = 32
@@ -48,7 +48,7 @@ SCENARIO = {
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("validate") / "dataset"
-    run_scenario(parse_scenario(SCENARIO, "test"), out)
+    generate_dataset(parse_scenario(SCENARIO, "test"), out)
     assert (out / "complete.json").is_file()
     return out
 
