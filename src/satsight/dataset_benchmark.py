@@ -127,6 +127,11 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=21, help="frames per case (>= 3)")
     parser.add_argument(
+        "--cases",
+        default=",".join(name for name, _, _ in DEFAULT_CASES),
+        help="comma list of cases to run",
+    )
+    parser.add_argument(
         "--case", nargs=4, metavar=("SIZE", "OUTPUTS", "FRAMES", "OUT"), help=argparse.SUPPRESS
     )
     args = parser.parse_args(argv)
@@ -136,7 +141,12 @@ def main(argv: list[str] | None = None) -> None:
             width, height = (int(v) for v in size.split("x"))
             result = run_case((width, height), outputs, int(frames), Path(out))
         else:
-            result = run_dataset_benchmark(args.frames)
+            chosen = args.cases.split(",")
+            unknown = set(chosen) - {name for name, _, _ in DEFAULT_CASES}
+            if unknown:
+                parser.error(f"unknown case(s) {', '.join(sorted(unknown))}")
+            cases = tuple(case for case in DEFAULT_CASES if case[0] in chosen)
+            result = run_dataset_benchmark(args.frames, cases)
     except SatsightError as error:
         print(f"error: {error}", file=sys.stderr)
         raise SystemExit(2) from None
