@@ -7,6 +7,7 @@ import errno
 import hashlib
 import json
 import os
+import shlex
 import shutil
 import signal
 import subprocess
@@ -140,6 +141,13 @@ def _wait_for_commits(out: Path, count: int, process: subprocess.Popen) -> int:
     return journal.read_bytes().count(b"\n") if journal.is_file() else 0
 
 
+def _resume_gives(reference_hashes: dict, out: Path, cwd: Path, *args: str) -> None:
+    """Run ``satsight ARGS``; it must succeed and leave ``out`` equal to the reference."""
+    resumed = run_satsight(*args, cwd=cwd)
+    assert resumed.returncode == 0, resumed.stderr
+    assert file_hashes(out) == reference_hashes
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_kill_9_at_a_random_moment_then_resume_gives_the_same_bytes(
     tmp_path: Path, scenario_file: Path, reference_hashes, seed: int
@@ -155,11 +163,8 @@ def test_kill_9_at_a_random_moment_then_resume_gives_the_same_bytes(
     assert not (out / "complete.json").exists()
     refused = run_satsight("generate", str(scenario_file), "--out", str(out), cwd=tmp_path)
     assert refused.returncode == 2 and "--resume" in refused.stderr
-    resumed = run_satsight(
-        "generate", str(scenario_file), "--out", str(out), "--resume", cwd=tmp_path
-    )
-    assert resumed.returncode == 0, resumed.stderr
-    assert file_hashes(out) == reference_hashes
+    _resume_gives(reference_hashes, out, tmp_path, "generate", str(scenario_file), "--out",
+                  str(out), "--resume")  # fmt: skip
 
 
 def test_ctrl_c_stops_after_the_frame_in_flight_and_says_how_to_resume(
@@ -182,11 +187,9 @@ def test_ctrl_c_stops_after_the_frame_in_flight_and_says_how_to_resume(
     for frame in dataset.frames:
         for relative, checksum in frame["checksums"].items():
             assert (out / relative).stat().st_size == checksum["size_bytes"]
-    resumed = run_satsight(
-        "generate", str(scenario_file), "--out", str(out), "--resume", cwd=tmp_path
-    )
-    assert resumed.returncode == 0, resumed.stderr
-    assert file_hashes(out) == reference_hashes
+    # The command the message gives is the one that finishes the dataset.
+    command = " ".join(stderr.split()).split("resume with: satsight ", 1)[1]
+    _resume_gives(reference_hashes, out, tmp_path, *shlex.split(command))
 
 
 def test_resume_drops_a_torn_journal_line_and_redoes_frames_with_missing_files(

@@ -1,7 +1,9 @@
-"""Command line: ``satsight demo | generate | plan | camera | ablate | bench | satellite``.
+"""Command line: ``satsight demo | generate | merge | validate | stats | export | plan |
+camera | ablate | bench | satellite``.
 
-A thin shell over ``satsight.pipeline``: user errors print a message and exit with status 2,
-never a traceback.
+A thin shell over ``satsight.generation``, ``satsight.dataset`` and the other stages: user
+errors print a message and exit with status 2, never a traceback; a run stopped by Ctrl-C
+exits with 130 after saying how to resume it.
 """
 
 from __future__ import annotations
