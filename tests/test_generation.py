@@ -406,3 +406,44 @@ def test_outputs_option_and_crop_larger_than_the_image_are_refused(
     assert result.returncode == 2 and "outputs.crop.size_px (500) exceeds" in result.stderr
     assert "Traceback" not in result.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_an_existing_scheduler_and_a_worker_killed_mid_run(tmp_path: Path, reference_hashes):
+    """``--scheduler``: frames rendered on a running Dask cluster; one of its worker
+    processes is killed with SIGKILL after the second commit. Its frames run again
+    elsewhere, none is lost or committed twice, and the bytes are the reference's."""
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        pids = [nanny.process.pid for nanny in cluster.workers.values()]
+        killed: list[int] = []
+
+        def on_frame_done(done: int, total: int) -> None:
+            if done == 2 and not killed:
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+
+        out = tmp_path / "dataset"
+        summary = generate_dataset(
+            parse_scenario(scenario_dict()),
+            out,
+            scheduler=cluster.scheduler_address,
+            on_frame_done=on_frame_done,
+        )
+    assert killed and summary.complete and summary.rendered == FRAME_COUNT
+    indices = [r["frame_index"] for r in read_journal(out)]
+    assert indices == list(range(FRAME_COUNT))
+    assert file_hashes(out) == reference_hashes
+
+
+def test_contact_sheet_shows_at_most_36_frames_spread_over_the_dataset() -> None:
+    from satsight.dataset.contact_sheet import CONTACT_SHEET_MAX_FRAMES, contact_sheet_frames
+
+    assert contact_sheet_frames(5) == [0, 1, 2, 3, 4]
+    for count in (37, 400, 10**6):
+        shown = contact_sheet_frames(count)
+        assert len(shown) == CONTACT_SHEET_MAX_FRAMES
+        assert shown[0] == 0 and shown[-1] == count - 1
+        gaps = np.diff(shown)
+        assert gaps.max() - gaps.min() <= 1  # evenly spread
