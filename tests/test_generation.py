@@ -447,3 +447,12 @@ def test_contact_sheet_shows_at_most_36_frames_spread_over_the_dataset() -> None
         assert shown[0] == 0 and shown[-1] == count - 1
         gaps = np.diff(shown)
         assert gaps.max() - gaps.min() <= 1  # evenly spread
+
+
+def test_an_unreachable_scheduler_is_refused_before_anything_is_written(tmp_path: Path):
+    pytest.importorskip("dask.distributed")
+    out = tmp_path / "dataset"
+    with pytest.raises(SatsightError, match="could not reach the Dask scheduler"):
+        generate_dataset(parse_scenario(scenario_dict()), out, scheduler="tcp://127.0.0.1:1")
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []

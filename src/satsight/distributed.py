@@ -15,8 +15,9 @@ Dask is an optional dependency (``pip install satsight[dask]``).
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 
 from satsight.config.scenario import parse_scenario
@@ -25,6 +26,7 @@ from satsight.errors import SatsightError
 
 # Frames queued per worker beyond the one it renders, so no worker waits for the client.
 _QUEUED_PER_WORKER = 2
+_CONNECT_TIMEOUT_S = 10
 _ENGINES: dict = {}
 _ENCODERS: list[ThreadPoolExecutor] = []
 
@@ -59,7 +61,11 @@ def render_frame_task(scenario_json: dict, root: str, frame_index: int, variant:
     return record
 
 
-def _client(workers: int | None, scheduler: str | None):
+@contextmanager
+def dask_client(workers: int | None, scheduler: str | None) -> Iterator:
+    """A Dask client: to a new LocalCluster of ``workers`` processes, or to the scheduler
+    at ``scheduler``. Made before the dataset folder is touched, so that a missing Dask or
+    an unreachable scheduler leaves nothing behind."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -67,76 +73,78 @@ def _client(workers: int | None, scheduler: str | None):
             "--workers and --scheduler need Dask: pip install 'satsight[dask]' "
             "(or dask[distributed])"
         ) from None
+    cluster = None
     if scheduler is not None:
         try:
-            return Client(scheduler, timeout="20s"), None
+            client = Client(scheduler, timeout=f"{_CONNECT_TIMEOUT_S}s")
         except (OSError, TimeoutError) as error:
             raise SatsightError(
                 f"could not reach the Dask scheduler at {scheduler}: {error}"
             ) from None
-    if workers is None or workers < 1:
-        raise SatsightError(f"--workers must be a whole number >= 1, got {workers}")
-    cluster = LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
-    return Client(cluster), cluster
+    else:
+        if workers is None or workers < 1:
+            raise SatsightError(f"--workers must be a whole number >= 1, got {workers}")
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
+        client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
 
 
 def run_distributed(
+    client,
     scenario_json: dict,
     root: Path,
     todo: list[int],
     commit: Callable[[dict], None],
     stop,
-    workers: int | None,
-    scheduler: str | None,
     variant: str,
 ) -> None:
-    """Render the frames of ``todo`` on Dask workers; ``commit`` each record as it comes."""
+    """Render the frames of ``todo`` on the client's workers; ``commit`` each record as it
+    comes back."""
     from dask.distributed import as_completed
 
-    client, cluster = _client(workers, scheduler)
-    try:
-        slots = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
-        window = slots * (1 + _QUEUED_PER_WORKER)
-        shared = client.scatter(scenario_json, broadcast=True)
-        key = scenario_sha256(scenario_json)[:16]
-        pending = iter(todo)
-        futures = as_completed()
-        submitted: list = []
+    workers = len(client.scheduler_info().get("workers", {}))
+    window = max(1, workers) * (1 + _QUEUED_PER_WORKER)
+    shared = client.scatter(scenario_json, broadcast=True)
+    key = scenario_sha256(scenario_json)[:16]
+    pending = iter(todo)
+    futures = as_completed()
+    submitted: list = []
 
-        def submit_next() -> None:
-            index = next(pending, None)
-            if index is not None:
-                submitted.append(
-                    client.submit(
-                        render_frame_task,
-                        shared,
-                        str(root),
-                        index,
-                        variant,
-                        key=f"satsight-{key}-frame-{index}",
-                        pure=False,
-                    )
+    def submit_next() -> None:
+        index = next(pending, None)
+        if index is not None:
+            submitted.append(
+                client.submit(
+                    render_frame_task,
+                    shared,
+                    str(root),
+                    index,
+                    variant,
+                    key=f"satsight-{key}-frame-{index}",
+                    pure=False,
                 )
-                futures.add(submitted[-1])
+            )
+            futures.add(submitted[-1])
 
-        for _ in range(window):
-            submit_next()
-        for future in futures:
-            commit(future.result())
-            future.release()
-            if stop.is_set():
-                break
-            submit_next()
+    for _ in range(window):
+        submit_next()
+    for future in futures:
+        commit(future.result())
+        future.release()
         if stop.is_set():
-            # The frames not yet committed are dropped; --resume renders them.
-            client.cancel([f for f in submitted if not f.done()])
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+            break
+        submit_next()
+    if stop.is_set():
+        # The frames not yet committed are dropped; --resume renders them.
+        client.cancel([f for f in submitted if not f.done()])

@@ -16,7 +16,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -389,11 +389,35 @@ def generate_dataset(
     manifest = dataset_manifest(engine, shard)
     frames = (shard or Shard(0, 1)).frames(engine.frame_count)
     summary = RunSummary(out_dir, len(frames), 0, 0, False, False, manifest["render_variant"], 0.0)
-    if prepare_folder(out_dir, manifest, scenario, overwrite, resume):
-        summary.complete = True
-        summary.committed_before = len(frames)
-        summary.total_seconds = time.perf_counter() - started
-        return summary
+    with ExitStack() as stack:
+        client = None
+        if workers is not None or scheduler is not None:
+            from satsight.distributed import dask_client
+
+            client = stack.enter_context(dask_client(workers, scheduler))
+        if prepare_folder(out_dir, manifest, scenario, overwrite, resume):
+            summary.complete = True
+            summary.committed_before = len(frames)
+            summary.total_seconds = time.perf_counter() - started
+            return summary
+        _render_missing_frames(engine, out_dir, manifest, frames, client, summary, stop,
+                               on_frame_done)  # fmt: skip
+    summary.total_seconds = time.perf_counter() - started
+    return summary
+
+
+def _render_missing_frames(
+    engine: FrameEngine,
+    out_dir: Path,
+    manifest: dict,
+    frames: list[int],
+    client,
+    summary: RunSummary,
+    stop: StopFlag,
+    on_frame_done: ProgressCallback | None,
+) -> None:
+    """Commit every frame of ``frames`` not yet committed in ``out_dir``, then close the
+    dataset (unless the run was stopped)."""
     _remove_temporary_files(out_dir)
     _write_dataset_files(out_dir, engine)
     done = committed_frames(out_dir, frames)
@@ -411,19 +435,18 @@ def generate_dataset(
             if on_frame_done is not None:
                 on_frame_done(len(done), len(frames))
 
-        if workers is None and scheduler is None:
+        if client is None:
             _run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds)
         else:
             from satsight.distributed import run_distributed
 
             run_distributed(
-                _scenario_json(scenario),
+                client,
+                _scenario_json(engine.scenario),
                 out_dir,
                 todo,
                 commit,
                 stop,
-                workers,
-                scheduler,
                 manifest["render_variant"],
             )
     summary.interrupted = len(done) < len(frames)
@@ -431,5 +454,3 @@ def generate_dataset(
         _remove_temporary_files(out_dir)  # left by workers killed mid-write
         finalize_dataset(out_dir, manifest, [done[i] for i in frames])
         summary.complete = True
-    summary.total_seconds = time.perf_counter() - started
-    return summary
