@@ -20,6 +20,7 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from satsight.config.scenario import Scenario
@@ -30,7 +31,13 @@ from satsight.dataset.contact_sheet import (
     thumbnail_source,
 )
 from satsight.dataset.frame_files import FrameArrays, write_frame_files
-from satsight.dataset.journal import JournalWriter, read_journal, write_bytes_atomic
+from satsight.dataset.journal import (
+    JOURNAL_NAME,
+    JournalFrames,
+    JournalWriter,
+    journal_frames,
+    write_bytes_atomic,
+)
 from satsight.dataset.manifest import (
     finalize_dataset,
     manifest_document,
@@ -197,20 +204,58 @@ def _intact(root: Path, record: dict) -> bool:
     return True
 
 
-def committed_frames(root: Path, frames: list[int]) -> dict[int, dict]:
-    """Frame index -> record of the frames of ``frames`` that are committed and intact
-    (the last record of a frame wins; a frame whose files are missing or cut is not)."""
-    wanted = set(frames)
-    records: dict[int, dict] = {}
-    for record in read_journal(root):
-        index = record["frame_index"]
-        if index not in wanted:
+class CommitTable:
+    """Where each committed frame of a run (one shard's frames, or all) lies in the
+    journal: two integers per frame, so that a 10^6-frame run keeps no records in memory."""
+
+    def __init__(self, shard: Shard, frame_count: int):
+        self.shard = shard
+        self.frames = shard.frames(frame_count)
+        self._offsets = np.full(len(self.frames), -1, dtype=np.int64)
+        self._lengths = np.zeros(len(self.frames), dtype=np.int64)
+        self.count = 0
+
+    def _position(self, frame_index: int) -> int | None:
+        position, remainder = divmod(frame_index - self.shard.index, self.shard.count)
+        if remainder or not 0 <= position < len(self.frames):
+            return None
+        return position
+
+    def __contains__(self, frame_index: int) -> bool:
+        return self._position(frame_index) is not None
+
+    def commit(self, frame_index: int, offset: int, length: int) -> None:
+        position = self._position(frame_index)
+        if self._offsets[position] < 0:
+            self.count += 1
+        self._offsets[position] = offset
+        self._lengths[position] = length
+
+    def todo(self) -> list[int]:
+        """The frames not committed yet, in order."""
+        return [self.frames[i] for i in np.flatnonzero(self._offsets < 0)]
+
+    def journal_lines(self, root: Path) -> Iterator[bytes]:
+        """Every frame's committed journal line, in frame order."""
+        return JournalFrames(root / JOURNAL_NAME, self._offsets, self._lengths).raw_lines()
+
+
+def committed_frames(root: Path, table: CommitTable) -> None:
+    """Enter in ``table`` the frames committed in ``root``'s journal whose files are all
+    there with their committed sizes (the last line of a frame wins)."""
+
+    def keep(record: dict) -> bool:
+        index = int(record["frame_index"])
+        if index not in table:
             raise SatsightError(
-                f"{root / 'journal.jsonl'} holds frame {index}, which this run does not "
-                "make (another shard's or scenario's); use the folder it was started for"
+                f"{root / JOURNAL_NAME} holds frame {index}, which this run does not make "
+                "(another shard's or scenario's); use the folder it was started for"
             )
-        records[index] = record
-    return {i: r for i, r in records.items() if _intact(root, r)}
+        return _intact(root, record)
+
+    lines = journal_frames(root, keep)
+    for index, offset, length in zip(lines.indices, lines.offsets, lines.lengths, strict=True):
+        table.commit(int(index), int(offset), int(length))
 
 
 def prepare_folder(
@@ -248,7 +293,7 @@ def prepare_folder(
                 "replace it, or choose another folder"
             )
         else:
-            committed = len({r["frame_index"] for r in read_journal(out_dir)})
+            committed = len(journal_frames(out_dir))
             raise SatsightError(
                 f"output folder {out_dir} holds an incomplete dataset ({committed} frames "
                 "committed); pass --resume to finish it or --overwrite to replace it"
@@ -400,8 +445,8 @@ def generate_dataset(
             summary.committed_before = len(frames)
             summary.total_seconds = time.perf_counter() - started
             return summary
-        _render_missing_frames(engine, out_dir, manifest, frames, client, summary, stop,
-                               on_frame_done)  # fmt: skip
+        _render_missing_frames(engine, out_dir, manifest, shard or Shard(0, 1), client, summary,
+                               stop, on_frame_done)  # fmt: skip
     summary.total_seconds = time.perf_counter() - started
     return summary
 
@@ -410,30 +455,32 @@ def _render_missing_frames(
     engine: FrameEngine,
     out_dir: Path,
     manifest: dict,
-    frames: list[int],
+    shard: Shard,
     client,
     summary: RunSummary,
     stop: StopFlag,
     on_frame_done: ProgressCallback | None,
 ) -> None:
-    """Commit every frame of ``frames`` not yet committed in ``out_dir``, then close the
+    """Commit every frame of ``shard`` not yet committed in ``out_dir``, then close the
     dataset (unless the run was stopped)."""
+    frames = shard.frames(engine.frame_count)
     _remove_temporary_files(out_dir)
     _write_dataset_files(out_dir, engine)
-    done = committed_frames(out_dir, frames)
-    summary.committed_before = len(done)
-    todo = [i for i in frames if i not in done]
+    table = CommitTable(shard, engine.frame_count)
+    committed_frames(out_dir, table)
+    summary.committed_before = table.count
+    todo = table.todo()
     if on_frame_done is not None:
-        on_frame_done(len(done), len(frames))
+        on_frame_done(table.count, len(frames))
 
     with JournalWriter(out_dir) as journal:
 
         def commit(record: dict) -> None:
-            journal.append(record)
-            done[record["frame_index"]] = record
+            offset, length = journal.append(record)
+            table.commit(record["frame_index"], offset, length)
             summary.rendered += 1
             if on_frame_done is not None:
-                on_frame_done(len(done), len(frames))
+                on_frame_done(table.count, len(frames))
 
         if client is None:
             _run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds)
@@ -449,8 +496,8 @@ def _render_missing_frames(
                 stop,
                 manifest["render_variant"],
             )
-    summary.interrupted = len(done) < len(frames)
+    summary.interrupted = table.count < len(frames)
     if not summary.interrupted:
         _remove_temporary_files(out_dir)  # left by workers killed mid-write
-        finalize_dataset(out_dir, manifest, [done[i] for i in frames])
+        finalize_dataset(out_dir, manifest, table.journal_lines(out_dir))
         summary.complete = True

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import io
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -105,7 +106,7 @@ def dataset_heading(manifest: dict) -> str:
     )
 
 
-def write_dataset_contact_sheet(root: Path, manifest: dict, records: list[dict]) -> bool:
+def write_dataset_contact_sheet(root: Path, manifest: dict, records: Sequence[dict]) -> bool:
     """Draw ``contact_sheet.png`` and drop the kept thumbnails; False when the frames have
     no image file to show."""
     root = Path(root)

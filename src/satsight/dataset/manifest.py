@@ -10,10 +10,16 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from satsight.dataset.contact_sheet import write_dataset_contact_sheet
-from satsight.dataset.journal import write_bytes_atomic, write_sorted_journal
+from satsight.dataset.journal import (
+    JOURNAL_NAME,
+    sorted_journal_frames,
+    write_bytes_atomic,
+    write_lines_atomic,
+)
 from satsight.dataset.reader import (
     COMPLETE_NAME,
     DATASET_FORMAT,
@@ -46,21 +52,36 @@ def write_manifest(root: Path, manifest: dict) -> None:
     write_bytes_atomic(Path(root) / MANIFEST_NAME, json_bytes(manifest))
 
 
-def finalize_dataset(root: Path, manifest: dict, records: list[dict]) -> None:
-    """Close a dataset whose frames are all in ``records``: sorted journal, labels.json,
-    contact sheet (if the outputs have images and the scenario asks for it), and
-    complete.json last."""
+def labels_lines(manifest: dict, records: Iterable[dict]) -> Iterator[bytes]:
+    """labels.json, piece by piece: exactly ``json_bytes({**manifest, "frames": records})``
+    without holding every record at once."""
+    head = json.dumps(manifest, indent=1, allow_nan=False)
+    yield (head[:-2] + ',\n "frames": [').encode("utf-8")
+    separator = "\n"
+    for record in records:
+        text = json.dumps(record, indent=1, allow_nan=False).replace("\n", "\n  ")
+        yield (separator + "  " + text).encode("utf-8")
+        separator = ",\n"
+    yield ("\n ]\n}\n" if separator == ",\n" else "]\n}\n").encode("utf-8")
+
+
+def finalize_dataset(root: Path, manifest: dict, journal_lines: Iterable[bytes]) -> None:
+    """Close a dataset whose frames are all committed: the journal rewritten with
+    ``journal_lines`` (every frame's line, in frame order), labels.json, the contact sheet
+    (if the outputs have images and the scenario asks for it), and complete.json last.
+
+    Records stream from file to file; memory does not grow with the frame count.
+    """
     root = Path(root)
-    records = sorted(records, key=lambda r: r["frame_index"])
-    journal = write_sorted_journal(root, records)
-    labels = json_bytes({**manifest, "frames": records})
-    write_bytes_atomic(root / LABELS_NAME, labels)
+    journal_sha256 = write_lines_atomic(root / JOURNAL_NAME, journal_lines)
+    frames = sorted_journal_frames(root)
+    labels_sha256 = write_lines_atomic(root / LABELS_NAME, labels_lines(manifest, frames))
     if manifest["outputs"]["contact_sheet"]:
-        write_dataset_contact_sheet(root, manifest, records)
+        write_dataset_contact_sheet(root, manifest, frames)
     complete = {
-        "frame_count": len(records),
+        "frame_count": len(frames),
         "shard": manifest.get("shard"),
-        "labels_sha256": hashlib.sha256(labels).hexdigest(),
-        "journal_sha256": hashlib.sha256(journal).hexdigest(),
+        "labels_sha256": labels_sha256,
+        "journal_sha256": journal_sha256,
     }
     write_bytes_atomic(root / COMPLETE_NAME, json_bytes(complete))

@@ -58,22 +58,41 @@ def check_shards(manifests: list[dict], folders: list[Path]) -> None:
 
 
 def merge_shards(folders: list[Path], out_dir: Path, move: bool = False) -> int:
-    """Merge complete shard folders into the dataset ``out_dir``; its frame count."""
+    """Merge complete shard folders into the dataset ``out_dir``; its frame count.
+
+    Records stream from the shards' journals: frame i is line i // N of shard i % N.
+    """
     folders = [Path(f) for f in folders]
     opened = [_open_shard(folder) for folder in folders]
     check_shards([manifest for _, manifest in opened], folders)
     manifest = {**opened[0][1], "shard": None}
-    records = [record for shard, _ in opened for record in shard.frames]
-    if sorted(r["frame_index"] for r in records) != list(range(manifest["frame_count"])):
-        raise SatsightError("the shards' frames do not cover the dataset once each")
+    count = int(manifest["frame_count"])
+    shards = {
+        int(m["shard"].split("/")[0]) - 1: (d, f) for (d, m), f in zip(opened, folders, strict=True)
+    }
+    shard_count = len(shards)
+    for k, (dataset, folder) in shards.items():
+        if len(dataset.frames) != len(range(k, count, shard_count)):
+            raise SatsightError(f"{folder} does not hold every frame of its shard")
     first = folders[0]
     with staged_folder(Path(out_dir)) as root:
         write_manifest(root, manifest)
         shutil.copyfile(first / "scenario.yaml", root / "scenario.yaml")
         shutil.copytree(first / "model", root / "model")
-        for (shard, _), folder in zip(opened, folders, strict=True):
-            for record in shard.frames:
+        for k, (dataset, folder) in shards.items():
+            for position, record in enumerate(dataset.frames):
+                if record["frame_index"] != k + position * shard_count:
+                    raise SatsightError(
+                        f"{folder}: frame {record['frame_index']} where frame "
+                        f"{k + position * shard_count} was expected; validate the shard"
+                    )
                 for relative in record["checksums"]:
                     _place(folder / relative, root / relative, move)
-        finalize_dataset(root, manifest, records)
-    return len(records)
+
+        def merged_lines():
+            streams = [shards[k][0].frames.raw_lines() for k in range(shard_count)]
+            for index in range(count):
+                yield next(streams[index % shard_count])
+
+        finalize_dataset(root, manifest, merged_lines())
+    return count

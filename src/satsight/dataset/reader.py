@@ -7,10 +7,11 @@ here, so that none of them mistakes an incomplete dataset for a complete one.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from satsight.dataset.journal import read_journal
+from satsight.dataset.journal import journal_frames, sorted_journal_frames
 from satsight.errors import SatsightError
 
 MANIFEST_NAME = "manifest.json"
@@ -47,13 +48,15 @@ class Dataset:
     """An opened dataset folder.
 
     root: the folder. header: the manifest (labels.json without its frames). frames: the
-    frame records, sorted by frame_index (see docs/dataset_format.md). complete: whether
-    ``complete.json`` is present (every planned frame committed, labels.json written).
+    frame records, sorted by frame_index (see docs/dataset_format.md), read from the
+    journal on demand (a sequence: index it or iterate it; a 10^6-frame dataset is not
+    held in memory). complete: whether ``complete.json`` is present (every planned frame
+    committed, labels.json written).
     """
 
     root: Path
     header: dict
-    frames: list[dict]
+    frames: Sequence[dict]
     complete: bool
 
     @property
@@ -99,17 +102,14 @@ def open_dataset(root: Path, require_complete: bool = True) -> Dataset:
         )
     complete = (root / COMPLETE_NAME).is_file()
     if complete:
-        labels = read_json(root / LABELS_NAME)
-        frames = labels.pop("frames", None)
-        if not isinstance(frames, list):
-            raise SatsightError(f"{root / LABELS_NAME} has no frames list")
-        return Dataset(root, labels, frames, True)
+        # The closed journal holds one line per frame in frame order; it and labels.json
+        # hold the same records (their hashes are in complete.json; validate compares).
+        return Dataset(root, manifest, sorted_journal_frames(root), True)
     if require_complete:
-        done = len({r["frame_index"] for r in read_journal(root)})
+        done = len(journal_frames(root))
         raise SatsightError(
             f"{root} is an incomplete dataset ({done} of {manifest.get('frame_count')} "
             "frames committed, no complete.json); finish it with 'satsight generate "
             f"SCENARIO --out {root} --resume'"
         )
-    records = {r["frame_index"]: r for r in read_journal(root)}
-    return Dataset(root, manifest, [records[i] for i in sorted(records)], False)
+    return Dataset(root, manifest, journal_frames(root), False)
