@@ -15,6 +15,8 @@ Dask is an optional dependency (``pip install satsight[dask]``).
 from __future__ import annotations
 
 import logging
+import signal
+import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
@@ -62,6 +64,21 @@ def render_frame_task(scenario_json: dict, root: str, frame_index: int, variant:
 
 
 @contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C while local worker processes start: they inherit the ignored signal,
+    so a Ctrl-C in the terminal reaches only this process, which stops the run after the
+    frames in flight (the workers would otherwise die with their frames)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
 def dask_client(workers: int | None, scheduler: str | None) -> Iterator:
     """A Dask client: to a new LocalCluster of ``workers`` processes, or to the scheduler
     at ``scheduler``. Made before the dataset folder is touched, so that a missing Dask or
@@ -84,13 +101,14 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator:
     else:
         if workers is None or workers < 1:
             raise SatsightError(f"--workers must be a whole number >= 1, got {workers}")
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-        )
+        with _sigint_ignored():  # inherited by the worker processes
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
         client = Client(cluster)
     try:
         yield client
@@ -140,7 +158,18 @@ def run_distributed(
     for _ in range(window):
         submit_next()
     for future in futures:
-        commit(future.result())
+        try:
+            record = future.result()
+        except SatsightError:
+            raise
+        except Exception as error:
+            if stop.is_set():
+                break  # stopping anyway; this frame is not committed
+            raise SatsightError(
+                f"a frame failed on the Dask workers ({type(error).__name__}: {error}); "
+                "the frames committed so far are kept: run again with --resume"
+            ) from None
+        commit(record)
         future.release()
         if stop.is_set():
             break
