@@ -463,3 +463,23 @@ def test_an_unreachable_scheduler_is_refused_before_anything_is_written(tmp_path
         generate_dataset(parse_scenario(scenario_dict()), out, scheduler="tcp://127.0.0.1:1")
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_resume_refuses_a_mesh_file_edited_since_the_start(tmp_path: Path) -> None:
+    from satsight.scene.obj_export import write_obj
+    from satsight.scene.procedural import generate_satellite
+
+    mesh = tmp_path / "sat.obj"
+    write_obj(generate_satellite("one_wing", 2), mesh)
+    data = scenario_dict()
+    data["target"] = {"mesh": {"path": str(mesh)}}
+    stop = StopFlag()
+    out = tmp_path / "dataset"
+    summary = generate_dataset(
+        parse_scenario(data), out, on_frame_done=lambda d, n: d >= 1 and stop.set(), stop=stop
+    )
+    assert summary.interrupted
+    with open(mesh, "a", encoding="utf-8") as stream:
+        stream.write("# edited\n")
+    with pytest.raises(SatsightError, match=r"different settings \(target.mesh_file_sha256\)"):
+        generate_dataset(parse_scenario(data), out, resume=True)

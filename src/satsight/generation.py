@@ -181,7 +181,8 @@ def _check_same_dataset(root: Path, manifest: dict, scenario: Scenario) -> None:
     keys = _differences(stored, manifest)
     raise SatsightError(
         f"{root} was started with different settings ({', '.join(keys[:6])}); resume with "
-        "the same satsight version, shard and render variant, or choose another folder"
+        "what it was started with (the same mesh file, satsight version, shard and render "
+        "variant), or choose another folder"
     )
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from satsight import __version__
 from satsight.config.scenario import Scenario, TargetConfig
 from satsight.dataset.frame_files import FrameArrays
+from satsight.dataset.journal import file_checksum
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
 from satsight.dataset.preview import DN_PREVIEW_STRETCH
 from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M
@@ -373,5 +374,9 @@ class FrameEngine:
                 **mesh.summary(),
                 "model_obj": "model/target.obj",
                 "keypoints_body_m": mesh.keypoints_body_m.tolist(),
+                # A mesh file edited between an interruption and --resume is refused.
+                "mesh_file_sha256": None
+                if scenario.target.mesh is None
+                else file_checksum(scenario.target.mesh.path)["sha256"],
             },
         }
