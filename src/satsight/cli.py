@@ -103,12 +103,12 @@ def _generate(
         if times
     )
     per_frame = summary.total_seconds / max(summary.rendered, 1)
-    what = "shard " + shard if shard else "dataset"
+    what = f"frames of shard {shard}" if shard else "frames"
+    before = f", {summary.committed_before} were there" if summary.committed_before else ""
     console.print(
-        f"wrote {summary.rendered} frames to {summary.out_dir} ({what} of "
-        f"{summary.frame_count} frames, {summary.variant}; {per_frame:.2f} s/frame end to end"
-        + (f"; medians: {stages}" if stages else "")
-        + ")"
+        f"wrote {summary.rendered} {what} to {summary.out_dir}{before} in "
+        f"{summary.total_seconds:.1f} s ({per_frame:.2f} s/frame end to end, "
+        f"{summary.variant}" + (f"; stage medians: {stages}" if stages else "") + ")"
     )
     if shard is None and (summary.out_dir / "contact_sheet.png").is_file():
         console.print(f"look first at {summary.out_dir / 'contact_sheet.png'}")
