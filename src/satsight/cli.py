@@ -86,13 +86,15 @@ def _generate(
             stop=stop,
         )
     if summary.interrupted:
-        args = [str(config_path), "--out", str(out_dir), "--resume"]
+        demo = config_path == example_scenario_path()
+        args = ["demo"] if demo else ["generate", str(config_path)]
+        args += ["--out", str(out_dir), "--resume"]
         args += [] if shard is None else ["--shard", shard]
         args += [] if outputs is None else ["--outputs", outputs]
         args += [] if crop_px is None else ["--crop-px", str(crop_px)]
         raise Interrupted(
             f"stopped: {summary.committed_before + summary.rendered} of {summary.frame_count} "
-            f"frames committed in {out_dir}; resume with: satsight generate " + shlex.join(args)
+            f"frames committed in {out_dir}; resume with: satsight " + shlex.join(args)
         )
     if summary.rendered == 0 and summary.complete:
         console.print(f"{out_dir} is already complete ({summary.frame_count} frames)")
