@@ -533,7 +533,7 @@ def satellite(satellite_class: str, seed: int, out_path: Path) -> None:
 )
 def validate(dataset: Path, hashes: bool, allow_incomplete: bool) -> None:
     """Check DATASET's files, checksums and labels; exit status 1 when problems are found."""
-    from satsight.dataset.validate import summary_table, validate_dataset
+    from satsight.dataset.validate import omitted_line, summary_table, validate_dataset
 
     # Transient: the bar shows while frames are checked, then gives way to the report.
     with Progress(*_progress().columns, console=console, transient=True) as progress:
@@ -547,6 +547,8 @@ def validate(dataset: Path, hashes: bool, allow_incomplete: bool) -> None:
     out = Console(soft_wrap=True, highlight=False)
     for problem in report.findings.problems:
         out.print(str(problem), markup=False)
+    if (more := omitted_line(report)) is not None:
+        out.print(more, markup=False)
     Console().print(summary_table(report))
     if not report.ok:
         sys.exit(1)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -25,11 +26,12 @@ from export_datasets import (
     write_box_dataset,
 )
 from satsight.dataset.export import export_dataset
-from satsight.dataset.export.bop import depth_scale_for
+from satsight.dataset.export.bop import bop_json_text, depth_scale_for
 from satsight.dataset.export.splits import SplitRule, assign_splits
 from satsight.dataset.image_files import read_png
 from satsight.dataset.preview import dn_preview_uint8
 from satsight.errors import SatsightError
+from synthetic_datasets import held_records_bytes, write_synthetic_dataset
 
 RULE = SplitRule((0.5, 0.25, 0.25), seed=0)
 CAMERA_KEYS = {"cx", "cy", "fx", "fy", "height", "width"}
@@ -395,3 +397,66 @@ def test_rendered_crops_export_with_their_intrinsics(rendered: Path) -> None:
         x0, y0, x1, y1 = crop["box_xyxy_px"]
         full = read_png(rendered / frame["files"]["object_mask_png"]) > 0
         assert np.array_equal(im["mask"], full[y0:y1, x0:x1])
+
+
+# --- JSON written entry by entry, memory bounded ------------------------------------------
+SCENE_FILES = ("scene_camera.json", "scene_gt.json", "scene_gt_info.json")
+
+
+def assert_json_as_written_at_once(export: Path) -> int:
+    """Every BOP JSON file of an export has the bytes the all-at-once writer
+    (``bop_json_text`` of the whole dict or list) gives; returns the entries seen."""
+    entries = 0
+    for path in sorted(export.rglob("*.json")):
+        if path.name == "satsight_export.json":
+            continue
+        text = path.read_text(encoding="utf-8")
+        document = json.loads(text)
+        if isinstance(document, dict):
+            document = {int(k) if k.isdigit() else k: v for k, v in document.items()}
+        assert text == bop_json_text(document), path
+        entries += len(document) if path.name in SCENE_FILES else 0
+    return entries
+
+
+def test_streamed_json_equals_the_all_at_once_output(bop: Path, rendered: Path) -> None:
+    assert assert_json_as_written_at_once(bop) == 3 * 4
+    out = rendered.parent / "bop_json"
+    export_dataset(rendered, out, "bop", SplitRule((0.5, 0.0, 0.5), seed=4), crop=True)
+    assert assert_json_as_written_at_once(out) == 3 * 4
+    assert (out / "test_targets_bop19.json").is_file()
+
+
+def test_export_memory_does_not_grow_with_the_frame_count(rendered: Path, tmp_path: Path) -> None:
+    """5000 frames (previews and masks shared by all; 80+ MB of records as Python objects)
+    export with a memory peak far below the records' size: the split holds frame
+    indices, records are read per split, and the scene JSON files are written entry by
+    entry. (5000, not 20 000: each frame writes three images, and 20 000 take about a
+    minute under tracemalloc.)"""
+    count = 5000
+    dataset = write_synthetic_dataset(
+        tmp_path / "d", rendered, count, files=("preview_png8", "object_mask_png")
+    )
+    journal_bytes = (dataset / "journal.jsonl").stat().st_size
+    records_bytes = held_records_bytes(dataset)
+    out = tmp_path / "bop"
+    tracemalloc.start()
+    summary = export_dataset(dataset, out, "bop", SplitRule((0.8, 0.1, 0.1)))
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert summary.split_sizes == {"train": 4000, "val": 500, "test": 500}
+    assert assert_json_as_written_at_once(out) == 3 * count
+    assert len(list((out / "train" / "000000" / "gray").iterdir())) == 4000
+    assert journal_bytes > 15e6
+    assert peak < records_bytes / 10, (
+        f"peak {peak / 1e6:.1f} MB exporting {count} frames, whose records take "
+        f"{records_bytes / 1e6:.0f} MB held at once (a {journal_bytes / 1e6:.0f} MB journal)"
+    )
+
+
+def test_labels_only_dataset_is_refused_with_the_usual_error(
+    large_labels_only: Path, tmp_path: Path
+) -> None:
+    with pytest.raises(SatsightError, match="frame 0 has neither full-frame files nor a crop"):
+        export_dataset(large_labels_only, tmp_path / "out", "bop", RULE)
+    assert not (tmp_path / "out").exists()

@@ -23,6 +23,7 @@ from export_datasets import (
     write_box_dataset,
 )
 from satsight.dataset.export import export_dataset
+from satsight.dataset.export.speedplus import json_text
 from satsight.dataset.export.splits import SplitRule, assign_splits
 from satsight.dataset.image_files import read_png
 from satsight.dataset.preview import dn_preview_uint8
@@ -147,6 +148,17 @@ def test_speedplus_projection_lands_on_satsight_pixels(
             R, t = box_pose(record["frame_index"])
             np.testing.assert_allclose(quat2dcm(q).T, R, atol=1e-12)
             np.testing.assert_allclose(r, t, atol=1e-9)
+
+
+def test_label_files_are_laid_out_as_written_at_once(speedplus: Path, tmp_path: Path) -> None:
+    """The label files, written entry by entry, have the bytes of ``json_text`` of the whole
+    list (empty lists included)."""
+    for export in (speedplus, tmp_path / "all_train"):
+        if not export.exists():
+            export_dataset(speedplus.parent / "dataset", export, "speedplus", SplitRule((1, 0, 0)))
+        for name in ("train.json", "validation.json", "test.json"):
+            text = (export / "synthetic" / name).read_text(encoding="utf-8")
+            assert text == json_text(json.loads(text)), name
 
 
 def test_dataset_without_previews_exports_the_stretched_dn(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@ the JSON's keys, the figure, and the dataset left untouched."""
 from __future__ import annotations
 
 import json
+import tracemalloc
 from collections import Counter
 from importlib import resources
 from pathlib import Path
@@ -24,6 +25,7 @@ from satsight.dataset.stats import (
     write_stats,
 )
 from satsight.generation import generate_dataset
+from synthetic_datasets import LARGE_FRAME_COUNT, held_records_bytes
 
 FRAME_COUNT = 14  # two per distance interval: six approach intervals and the hover
 
@@ -156,3 +158,26 @@ def test_cli_refuses_an_incomplete_dataset(dataset: Path, tmp_path: Path, capsys
         main(["stats", str(copy), "--out", str(tmp_path / "out")])
     assert exit_info.value.code == 2
     assert "--resume" in capsys.readouterr().err
+
+
+def test_stats_memory_does_not_grow_with_the_frame_count(large_labels_only: Path) -> None:
+    """20 000 frames (a 60 MB journal, 300+ MB as Python objects) are counted and binned
+    in one pass holding a few numbers per frame: the memory peak stays far below the
+    records' size."""
+    journal_bytes = (large_labels_only / "journal.jsonl").stat().st_size
+    records_bytes = held_records_bytes(large_labels_only)
+    tracemalloc.start()
+    stats = dataset_stats(open_dataset(large_labels_only))
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert stats["frame_count"] == LARGE_FRAME_COUNT
+    assert sum(stats["counts"]["distance_interval"].values()) == LARGE_FRAME_COUNT
+    assert sum(stats["counts"]["target_class"].values()) == LARGE_FRAME_COUNT
+    for name, hist in stats["histograms"].items():
+        assert sum(hist["counts"]) + hist["missing"] == LARGE_FRAME_COUNT, name
+    assert stats["histograms"]["phase_angle_deg"]["max"] > 170.0  # varies frame to frame
+    assert journal_bytes > 50e6
+    assert peak < records_bytes / 20, (
+        f"peak {peak / 1e6:.1f} MB for {LARGE_FRAME_COUNT} frames, whose records take "
+        f"{records_bytes / 1e6:.0f} MB held at once (a {journal_bytes / 1e6:.0f} MB journal)"
+    )

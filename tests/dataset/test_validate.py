@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import tracemalloc
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,11 +20,13 @@ import pytest
 
 from satsight.cli import main
 from satsight.config.scenario import parse_scenario
-from satsight.dataset.journal import record_line
-from satsight.dataset.manifest import json_bytes
+from satsight.dataset.journal import record_line, sorted_journal_frames
+from satsight.dataset.manifest import json_bytes, labels_lines
+from satsight.dataset.problems import MAX_KEPT_PROBLEMS
 from satsight.dataset.validate import ValidationReport, validate_dataset
 from satsight.errors import SatsightError
 from satsight.generation import generate_dataset
+from synthetic_datasets import LARGE_FRAME_COUNT, held_records_bytes, write_synthetic_dataset
 
 FRAME_COUNT = 4
 CROP_PX = 32
@@ -338,3 +341,102 @@ def test_missing_folder_is_a_usage_error(tmp_path: Path, capsys) -> None:
     with pytest.raises(SystemExit) as exit_info:
         main(["validate", str(tmp_path)])  # a folder, but no dataset
     assert exit_info.value.code == 2
+
+
+# --- labels.json read as a stream ---------------------------------------------------------
+def test_labels_in_another_layout_differ_only_in_their_hash(copy: Path) -> None:
+    (copy / "labels.json").write_text(json.dumps(labels_of(copy)), encoding="utf-8")
+    report = validate_dataset(copy, hashes=False)
+    (message,) = [str(p) for p in report.findings.problems]
+    assert message.startswith("labels.json: expected SHA-256") and "changed after" in message
+
+
+def test_unreadable_labels_are_reported_and_the_journal_checked(copy: Path) -> None:
+    data = (copy / "labels.json").read_bytes()
+    (copy / "labels.json").write_bytes(data[: len(data) // 2])
+    report = validate_dataset(copy, hashes=False)
+    (message,) = problems_at(report, None, "labels.json")[1:]
+    assert "labels.json is not readable JSON: " in message and " line " in message
+    assert report.frames_checked == FRAME_COUNT
+    assert report.findings.counts()["journal"] == (0, 0)
+
+
+# --- large datasets: memory bounded, problems capped -----------------------------------------
+def test_validation_memory_does_not_grow_with_the_frame_count(large_labels_only: Path) -> None:
+    """20 000 frames (a 60 MB journal, a 100 MB labels.json, 300+ MB as Python objects)
+    are found clean (the command line's exit status 0) with a memory peak far below the
+    records' size."""
+    journal_bytes = (large_labels_only / "journal.jsonl").stat().st_size
+    labels_bytes = (large_labels_only / "labels.json").stat().st_size
+    records_bytes = held_records_bytes(large_labels_only)
+    tracemalloc.start()
+    report = validate_dataset(large_labels_only)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert report.ok, [str(p) for p in report.findings.problems[:10]]
+    assert report.frames_checked == LARGE_FRAME_COUNT
+    assert report.findings.counts()["journal"] == (LARGE_FRAME_COUNT, 0)
+    assert journal_bytes > 50e6 and labels_bytes > journal_bytes
+    assert peak < records_bytes / 20, (
+        f"peak {peak / 1e6:.1f} MB validating {LARGE_FRAME_COUNT} frames, whose records "
+        f"take {records_bytes / 1e6:.0f} MB held at once (a {journal_bytes / 1e6:.0f} MB "
+        f"journal, a {labels_bytes / 1e6:.0f} MB labels.json)"
+    )
+
+
+def test_a_labels_edit_is_found_in_a_large_dataset_with_bounded_memory(
+    labels_only_template: Path, tmp_path: Path
+) -> None:
+    """labels.json differs from the journal in one frame of 2000: read again, as a
+    stream, to name that frame."""
+    count, edited = 2000, 1234
+    root = write_synthetic_dataset(tmp_path / "d", labels_only_template, count)
+    manifest = json.loads((root / "manifest.json").read_text(encoding="utf-8"))
+
+    def records():
+        for frame in sorted_journal_frames(root):
+            if frame["frame_index"] == edited:
+                frame["sun_irradiance_w_m2"] *= 2
+            yield frame
+
+    labels = root / "labels.json.new"
+    with open(labels, "wb") as stream:
+        for piece in labels_lines(manifest, records()):
+            stream.write(piece)
+    labels.replace(root / "labels.json")
+    records_bytes = held_records_bytes(root)
+    tracemalloc.start()
+    report = validate_dataset(root)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert problems_at(report, edited, "labels.json") == [
+        "expected the journal.jsonl record, found other values of sun_irradiance_w_m2"
+    ]
+    assert "changed after the dataset was completed" in problems_at(report, None, "labels.json")[0]
+    assert report.findings.total == 2 and report.frames_checked == count
+    assert peak < records_bytes / 5, (
+        f"peak {peak / 1e6:.1f} MB for {count} frames whose records take "
+        f"{records_bytes / 1e6:.0f} MB held at once"
+    )
+
+
+def test_problems_beyond_the_cap_are_counted_not_kept(
+    labels_only_template: Path, tmp_path: Path, capsys
+) -> None:
+    count = MAX_KEPT_PROBLEMS + 1500
+
+    def negate(record: dict) -> None:  # the same rotation: only the sign rule breaks
+        record["q_cam_from_body"] = [-c for c in record["q_cam_from_body"]]
+
+    root = write_synthetic_dataset(tmp_path / "d", labels_only_template, count, edit=negate)
+    report = validate_dataset(root)
+    assert len(report.findings.problems) == MAX_KEPT_PROBLEMS
+    assert report.findings.total == count and report.findings.omitted == 1500
+    assert report.findings.counts()["pose"] == (count, count)
+    assert [p.frame for p in report.findings.problems] == list(range(MAX_KEPT_PROBLEMS))
+    with pytest.raises(SystemExit) as exit_info:
+        main(["validate", str(root)])
+    assert exit_info.value.code == 1
+    out = capsys.readouterr().out
+    assert f"... and 1500 more problem(s), not listed: the first {MAX_KEPT_PROBLEMS}" in out
+    assert f"{count} problem(s)" in out

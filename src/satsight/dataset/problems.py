@@ -1,7 +1,9 @@
 """Problems found in a dataset folder, and how many times each check ran.
 
 ``satsight validate`` collects every problem instead of stopping at the first; each one
-names the frame and the file it concerns, what was expected and what came.
+names the frame and the file it concerns, what was expected and what came. A dataset of
+10^6 frames may have 10^6 problems: every one is counted, per check, but only the first
+``MAX_KEPT_PROBLEMS`` are kept in full.
 """
 
 from __future__ import annotations
@@ -21,6 +23,9 @@ CHECKS = {
     "masks": "box, pixel count and flags from the object mask; part mask and depth agree",
     "crop": "crop K, box, keypoints and files agree with the full frame",
 }
+
+#: Problems a ``Findings`` keeps in full; the ones after them are only counted.
+MAX_KEPT_PROBLEMS = 1000
 
 
 @dataclass(frozen=True)
@@ -46,10 +51,26 @@ class Problem:
 
 @dataclass
 class Findings:
-    """Problems found so far, and how many items each check has looked at."""
+    """Problems found so far, and how many items each check has looked at.
+
+    problems: the first ``limit`` problems, in the order found. found: problems found per
+    check, those beyond ``limit`` included. checked: items each check looked at.
+    """
 
     problems: list[Problem] = field(default_factory=list)
     checked: Counter = field(default_factory=Counter)
+    found: Counter = field(default_factory=Counter)
+    limit: int = MAX_KEPT_PROBLEMS
+
+    @property
+    def total(self) -> int:
+        """Problems found, kept or not."""
+        return sum(self.found.values())
+
+    @property
+    def omitted(self) -> int:
+        """Problems found but not kept (beyond ``limit``)."""
+        return self.total - len(self.problems)
 
     def ran(self, check: str, count: int = 1) -> None:
         """Count ``count`` items looked at by ``check``."""
@@ -58,15 +79,18 @@ class Findings:
     def add(
         self, check: str, message: str, frame: int | None = None, file: str | None = None
     ) -> None:
-        """Record a problem found by ``check``."""
-        self.problems.append(Problem(check, message, frame, file))
+        """Record a problem found by ``check`` (kept in full while fewer than ``limit``)."""
+        self.found[check] += 1
+        if len(self.problems) < self.limit:
+            self.problems.append(Problem(check, message, frame, file))
 
     def extend(self, other: Findings) -> None:
-        """Take over another set of findings (in its order)."""
-        self.problems.extend(other.problems)
+        """Take over another set of findings (in its order, up to ``limit`` kept)."""
+        room = max(0, self.limit - len(self.problems))
+        self.problems.extend(other.problems[:room])
         self.checked.update(other.checked)
+        self.found.update(other.found)
 
     def counts(self) -> dict[str, tuple[int, int]]:
         """Check name -> (items checked, problems found), in the order of ``CHECKS``."""
-        found = Counter(p.check for p in self.problems)
-        return {name: (self.checked[name], found[name]) for name in CHECKS}
+        return {name: (self.checked[name], self.found[name]) for name in CHECKS}

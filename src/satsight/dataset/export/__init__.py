@@ -5,6 +5,10 @@
 it into place at the end, so that a failed export leaves nothing behind. Every export also
 holds ``satsight_export.json``: the source dataset, the split rule and which frames went
 where. The layouts and conventions are in docs/dataset_format.md, "Exports".
+
+Memory does not grow with the frame count beyond a few integers per frame: the split is
+made of frame indices, and each split's records are read from the journal as they are
+written out (``ExportFrames``).
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from satsight.dataset.export.bop import write_bop
-from satsight.dataset.export.source import export_frame, uses_crops
+from satsight.dataset.export.source import ExportFrames, scan_frames
 from satsight.dataset.export.speedplus import DEFAULT_DOMAIN, write_speedplus
 from satsight.dataset.export.splits import SPLIT_NAMES, SplitRule, assign_splits
 from satsight.dataset.reader import open_dataset
@@ -89,11 +93,11 @@ def export_dataset(
     source, out_dir = Path(source), Path(out_dir)
     dataset = open_dataset(source)
     _check_out_dir(source, out_dir, overwrite)
-    use_crops = uses_crops(dataset, crop)
-    by_index = {int(r["frame_index"]): r for r in dataset.frames}
-    assignment = assign_splits(list(by_index), rule)
+    table = scan_frames(dataset, crop)
+    use_crops = table.crop
+    assignment = assign_splits(table.frame_indices.tolist(), rule)
     splits = {
-        name: [export_frame(dataset, by_index[i], use_crops) for i in assignment[name]]
+        name: ExportFrames(dataset, table.positions_of(assignment[name]), use_crops)
         for name in SPLIT_NAMES
     }
     with staged_folder(out_dir, overwrite) as root:
@@ -116,7 +120,9 @@ def export_dataset(
             },
             "notes": notes,
         }
-        (root / EXPORT_RECORD).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+        with open(root / EXPORT_RECORD, "w", encoding="utf-8") as stream:
+            json.dump(record, stream, indent=1)  # written piece by piece
+            stream.write("\n")
     return ExportSummary(
         out_dir=out_dir,
         format=fmt,

@@ -17,20 +17,29 @@ IMID is the satsight frame_index (six digits). Poses: ``cam_R_m2c`` (row-major) 
 ``cam_t_m2c`` (mm) with ``x_cam = R @ x_model + t``: satsight's R(q_cam_from_body) and
 t_cam_from_body_m * 1000, the model frame being the body frame. satsight has a single
 target that only it can hide, so its mask is both ``mask`` and ``mask_visib``.
+
+The images are written on a few threads with a bounded number in flight, and the scene
+JSON files entry by entry as they are (``JsonEntries``): memory does not grow with the
+number of images.
 """
 
 from __future__ import annotations
 
 import json
 import shutil
-from concurrent.futures import ThreadPoolExecutor
+from array import array
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Executor, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from satsight.dataset.export.bop_model import MM_PER_M, write_bop_model
+from satsight.dataset.export.json_entries import JsonEntries
 from satsight.dataset.export.source import (
     ExportFrame,
+    ExportFrames,
     read_depth_m,
     read_gray8,
     read_mask,
@@ -51,6 +60,7 @@ UINT16_MAX = 65535
 MIN_DEPTH_SCALE = 0.01
 _PURPOSE = "the BOP export"
 _WORKERS = 2
+_IN_FLIGHT = 4 * _WORKERS
 
 
 def bop_json_text(content: dict | list) -> str:
@@ -72,6 +82,28 @@ def bop_json_text(content: dict | list) -> str:
 
 def write_bop_json(path: Path, content: dict | list) -> None:
     path.write_text(bop_json_text(content), encoding="utf-8")
+
+
+def bop_json_entries(path: Path, kind: type = dict) -> JsonEntries:
+    """A BOP JSON file written entry by entry, with the bytes of ``write_bop_json``; a
+    dict's image ids must come in increasing order."""
+    return JsonEntries(path, kind, sort_keys=True, final_newline=False)
+
+
+def ordered_map(pool: Executor, function: Callable, items: Iterable, in_flight: int) -> Iterator:
+    """``function(item)`` of each item on ``pool``, the results in the items' order, with
+    at most ``in_flight`` items submitted and not yet taken."""
+    pending: deque = deque()
+    try:
+        for item in items:
+            pending.append(pool.submit(function, item))
+            if len(pending) >= in_flight:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
+    finally:
+        for future in pending:
+            future.cancel()
 
 
 def depth_scale_for(max_depth_mm: float) -> float:
@@ -153,27 +185,43 @@ def _frame_entries(
 
 
 def write_bop_split(
-    frames: list[ExportFrame], split_dir: Path, header: dict, with_depth: bool
-) -> tuple[dict, set[str]]:
-    """Write one split's scene 000000; returns its scene_gt_info and the image sources."""
+    frames: Iterable[ExportFrame],
+    split_dir: Path,
+    header: dict,
+    with_depth: bool,
+    visible_ids: array | None = None,
+) -> set[str]:
+    """Write one split's scene 000000; returns the image sources. The image ids whose
+    target shows (px_count_visib > 0) are appended to ``visible_ids`` when given."""
     scene_dir = split_dir / f"{SCENE_ID:06d}"
     folders = ["gray", "mask", "mask_visib"] + (["depth"] if with_depth else [])
     for folder in folders:
         (scene_dir / folder).mkdir(parents=True, exist_ok=True)
-    with ThreadPoolExecutor(max_workers=_WORKERS) as pool:
-        results = list(pool.map(lambda f: _frame_entries(f, scene_dir, header, with_depth), frames))
-    by_id = dict(zip((f.frame_index for f in frames), results, strict=True))
-    write_bop_json(scene_dir / "scene_camera.json", {i: r[0] for i, r in by_id.items()})
-    write_bop_json(scene_dir / "scene_gt.json", {i: [r[1]] for i, r in by_id.items()})
-    info = {i: [r[2]] for i, r in by_id.items()}
-    write_bop_json(scene_dir / "scene_gt_info.json", info)
-    return info, {r[3] for r in results}
+    sources: set[str] = set()
+
+    def entries(frame: ExportFrame) -> tuple[int, tuple[dict, dict, dict, str]]:
+        return frame.frame_index, _frame_entries(frame, scene_dir, header, with_depth)
+
+    with (
+        ThreadPoolExecutor(max_workers=_WORKERS) as pool,
+        bop_json_entries(scene_dir / "scene_camera.json") as cameras,
+        bop_json_entries(scene_dir / "scene_gt.json") as gts,
+        bop_json_entries(scene_dir / "scene_gt_info.json") as infos,
+    ):
+        for im_id, (camera, gt, info, source) in ordered_map(pool, entries, frames, _IN_FLIGHT):
+            cameras.add(im_id, camera)
+            gts.add(im_id, [gt])
+            infos.add(im_id, [info])
+            sources.add(source)
+            if visible_ids is not None and info["px_count_visib"] > 0:
+                visible_ids.append(im_id)
+    return sources
 
 
-def camera_json(dataset: Dataset, frames: list[ExportFrame]) -> dict:
+def camera_json(dataset: Dataset, first: ExportFrame) -> dict:
     """BOP camera.json (for sensor simulation): the full camera, or one crop-sized camera
-    with the principal point at the crop centre (each image's exact K is its cam_K)."""
-    first = frames[0]
+    with the principal point at the crop centre (each image's exact K is its cam_K);
+    ``first``: the first frame exported."""
     if first.crop:
         width, height = first.size_px
         K = first.K.copy()
@@ -192,34 +240,38 @@ def camera_json(dataset: Dataset, frames: list[ExportFrame]) -> dict:
     }
 
 
-def write_bop(dataset: Dataset, splits: dict[str, list[ExportFrame]], root: Path) -> list[str]:
-    """Write the BOP export of ``splits`` (name -> frames) into ``root``; returns notes."""
-    frames = [f for split in splits.values() for f in split]
-    with_depth = all("depth_exr" in f.files for f in frames)
-    for frame in frames:  # fail before writing anything large
-        require_image(frame, _PURPOSE)
-        require_file(frame, "object_mask_png", "BOP's masks and scene_gt_info.json")
-        if with_depth:
-            require_file(frame, "depth_exr", _PURPOSE)
+def write_bop(dataset: Dataset, splits: dict[str, ExportFrames], root: Path) -> list[str]:
+    """Write the BOP export of ``splits`` (name -> frames) into ``root``; returns notes.
+
+    Three passes over the frames: which have depth, what each needs (checked before
+    anything large is written), then the images and JSON files, split by split.
+    """
+    with_depth = all("depth_exr" in f.files for split in splits.values() for f in split)
+    first = None
+    for split in splits.values():
+        for frame in split:  # fail before writing anything large
+            first = frame if first is None else first
+            require_image(frame, _PURPOSE)
+            require_file(frame, "object_mask_png", "BOP's masks and scene_gt_info.json")
+            if with_depth:
+                require_file(frame, "depth_exr", _PURPOSE)
     model = dataset.header.get("target", {}).get("model_obj", "model/target.obj")
     info_entry = write_bop_model(dataset.root / model, root / "models", OBJ_ID)
     write_bop_json(root / "models" / "models_info.json", {OBJ_ID: info_entry})
-    write_bop_json(root / "camera.json", camera_json(dataset, frames))
+    write_bop_json(root / "camera.json", camera_json(dataset, first))
     sources: set[str] = set()
-    targets = []
+    targets = array("q")  # test images showing the target
     for name, split_frames in splits.items():
-        if not split_frames:
+        if not len(split_frames):
             continue
-        info, used = write_bop_split(split_frames, root / name, dataset.header, with_depth)
-        sources |= used
-        if name == "test":
-            targets = [
-                {"im_id": i, "inst_count": 1, "obj_id": OBJ_ID, "scene_id": SCENE_ID}
-                for i, entries in sorted(info.items())
-                if entries[0]["px_count_visib"] > 0
-            ]
+        visible = targets if name == "test" else None
+        sources |= write_bop_split(split_frames, root / name, dataset.header, with_depth, visible)
     if targets:
-        write_bop_json(root / "test_targets_bop19.json", targets)
+        with bop_json_entries(root / "test_targets_bop19.json", list) as entries:
+            for im_id in targets:
+                entries.append(
+                    {"im_id": im_id, "inst_count": 1, "obj_id": OBJ_ID, "scene_id": SCENE_ID}
+                )
     gray = {
         frozenset({"preview_png8"}): "gray: 8-bit previews",
         frozenset({"dn_png16"}): "gray: DN stretched to 8 bits (no previews)",

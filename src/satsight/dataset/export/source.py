@@ -5,10 +5,17 @@ dataset keeps only crops). ``ExportFrame`` holds what the exporters need in the 
 view: the pose ``x_cam = R(q_cam_from_body) @ x_body + t_cam_from_body_m`` (metres; the
 same for a crop, whose camera frame is the full frame's), the 3x3 intrinsics K in that
 view's pixels (pixel (0, 0) is the centre of the top-left pixel), its size and its files.
+
+A dataset of 10^6 frames holds several GB of records: an export never holds them all.
+``scan_frames`` reads them once for their frame indices and the views they have;
+``ExportFrames`` then reads one split's records from the journal on each pass over it.
 """
 
 from __future__ import annotations
 
+import json
+from array import array
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,6 +23,7 @@ import numpy as np
 
 from satsight.config.outputs import OUTPUT_FILE_KEYS
 from satsight.dataset.image_files import read_exr, read_png
+from satsight.dataset.journal import JournalFrames
 from satsight.dataset.preview import dn_preview_uint8
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
@@ -43,32 +51,91 @@ class ExportFrame:
     crop: bool
 
 
-def uses_crops(dataset: Dataset, crop_requested: bool) -> bool:
-    """Whether to export the crops: asked for, or the only images the dataset keeps."""
-    frames = dataset.frames
-    if not frames:
-        raise SatsightError(f"{dataset.root} holds no frames; there is nothing to export")
-    has_crop = [bool((f.get("crop") or {}).get("files")) for f in frames]
-    crop_only = [not f.get("files") for f in frames]
-    for frame, cropped, bare in zip(frames, has_crop, crop_only, strict=True):
+@dataclass(frozen=True)
+class FrameTable:
+    """What one pass over a dataset's records tells an export.
+
+    frame_indices: the frame indices, sorted, each once. positions: where the record of
+    each lies in ``dataset.frames`` (of several records of one frame index, the last).
+    crop: whether to export the crops.
+    """
+
+    frame_indices: np.ndarray
+    positions: np.ndarray
+    crop: bool
+
+    def positions_of(self, frame_indices: list[int]) -> np.ndarray:
+        """Positions in ``dataset.frames`` of the records of these frame indices."""
+        wanted = np.asarray(frame_indices, dtype=np.int64)
+        return self.positions[np.searchsorted(self.frame_indices, wanted)]
+
+
+def scan_frames(dataset: Dataset, crop_requested: bool) -> FrameTable:
+    """Read every record once: the frame indices, and whether to export the crops (asked
+    for, or the only images the dataset keeps). A few integers per frame are kept."""
+    indices = array("q")
+    with_crop = 0
+    crop_only = False
+    for frame in dataset.frames:
+        cropped = bool((frame.get("crop") or {}).get("files"))
+        bare = not frame.get("files")
         if bare and not cropped:
             raise SatsightError(
                 f"{dataset.root}: frame {frame['frame_index']} has neither full-frame files "
                 "nor a crop; the dataset is damaged: regenerate it"
             )
-    if not (crop_requested or any(crop_only)):
-        return False
-    if not any(has_crop):
+        with_crop += cropped
+        crop_only |= bare
+        indices.append(int(frame["frame_index"]))
+    if not indices:
+        raise SatsightError(f"{dataset.root} holds no frames; there is nothing to export")
+    by_index = np.array(indices, dtype=np.int64)
+    order = np.lexsort((np.arange(len(by_index)), by_index))
+    last = np.ones(len(order), dtype=bool)
+    last[:-1] = by_index[order[1:]] != by_index[order[:-1]]
+    table = FrameTable(by_index[order[last]], order[last], False)
+    if not (crop_requested or crop_only):
+        return table
+    if not with_crop:
         raise SatsightError(
             f"--crop: {dataset.root} has no crops; generate it with outputs.crop "
             "(e.g. outputs: {crop: {size_px: 256}}) or export the full frames without --crop"
         )
-    if not all(has_crop):
+    if with_crop < len(indices):
         raise SatsightError(
-            f"--crop: only {sum(has_crop)} of {len(frames)} frames of {dataset.root} have a "
+            f"--crop: only {with_crop} of {len(indices)} frames of {dataset.root} have a "
             "crop; export the full frames without --crop"
         )
-    return True
+    return FrameTable(table.frame_indices, table.positions, True)
+
+
+def records_at(frames: Sequence[dict], positions: np.ndarray) -> Iterator[dict]:
+    """The records at ``positions`` of a dataset's frames, one at a time (a journal is
+    read through one open file)."""
+    if not isinstance(frames, JournalFrames):
+        for position in positions:
+            yield frames[int(position)]
+        return
+    with open(frames.path, "rb") as stream:
+        for position in positions:
+            stream.seek(int(frames.offsets[position]))
+            yield json.loads(stream.read(int(frames.lengths[position])))
+
+
+class ExportFrames:
+    """One split's frames as ``ExportFrame``s (whole, or their crops when ``crop``), in
+    the order of ``positions``; each pass over them reads their records anew, one at a
+    time."""
+
+    def __init__(self, dataset: Dataset, positions: np.ndarray, crop: bool):
+        self.dataset, self.positions, self.crop = dataset, positions, crop
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def __iter__(self) -> Iterator[ExportFrame]:
+        for record in records_at(self.dataset.frames, self.positions):
+            yield export_frame(self.dataset, record, self.crop)
 
 
 def export_frame(dataset: Dataset, record: dict, crop: bool) -> ExportFrame:

@@ -22,6 +22,9 @@ centre when pixel coordinates are measured from the outer corner of the top-left
 satsight measures them from that pixel's centre (image centre ((W - 1) / 2, (H - 1) / 2)),
 so the export adds 0.5 px to the principal point: a point projected with the exported
 labels lands at satsight's pixel position + (0.5, 0.5), the same spot on the sensor.
+
+The label files are written entry by entry as the images are (``JsonEntries``): memory
+does not grow with the number of images.
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from satsight.dataset.export.source import ExportFrame, read_gray8, require_image
+from satsight.dataset.export.json_entries import JsonEntries
+from satsight.dataset.export.source import ExportFrame, ExportFrames, read_gray8, require_image
 from satsight.dataset.image_files import encode_png
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
@@ -77,10 +81,15 @@ def label_entry(frame: ExportFrame) -> dict:
     }
 
 
-def _shared_camera(frames: list[ExportFrame]) -> tuple[np.ndarray, tuple[int, int]]:
-    """The one K and size of every frame, or a SatsightError (SPEED+ has one camera)."""
-    K, size = frames[0].K, frames[0].size_px
-    for frame in frames[1:]:
+def _shared_camera(splits: dict[str, ExportFrames]) -> tuple[np.ndarray, tuple[int, int]]:
+    """The one K and size of every frame (those of the first), or a SatsightError (SPEED+
+    has one camera)."""
+    first = None
+    for frame in (frame for split in splits.values() for frame in split):
+        if first is None:
+            first = frame
+            K, size = frame.K, frame.size_px
+            continue
         if frame.size_px != size or not np.allclose(frame.K, K, rtol=0, atol=1e-9):
             remedy = "export them with --format bop (per-image cam_K)"
             if frame.crop:
@@ -91,7 +100,7 @@ def _shared_camera(frames: list[ExportFrame]) -> tuple[np.ndarray, tuple[int, in
             raise SatsightError(
                 "SPEED+ describes every image with one camera.json, but frame "
                 f"{frame.frame_index} has other intrinsics than frame "
-                f"{frames[0].frame_index}: {remedy}"
+                f"{first.frame_index}: {remedy}"
             )
     return K, size
 
@@ -133,21 +142,27 @@ def _write_image(frame: ExportFrame, header: dict, images: Path) -> str:
 
 
 def write_speedplus(
-    dataset: Dataset, splits: dict[str, list[ExportFrame]], root: Path, domain: str
+    dataset: Dataset, splits: dict[str, ExportFrames], root: Path, domain: str
 ) -> list[str]:
-    """Write the SPEED+ export of ``splits`` into ``root``; returns notes for the summary."""
-    frames = [f for split in splits.values() for f in split]
-    K, size = _shared_camera(frames)
-    for frame in frames:  # fail before writing anything large
-        require_image(frame, _PURPOSE)
+    """Write the SPEED+ export of ``splits`` into ``root``; returns notes for the summary.
+
+    Three passes over the frames: the shared camera, the images each needs (checked before
+    anything large is written), then the images and label files, split by split.
+    """
+    K, size = _shared_camera(splits)
+    for split in splits.values():
+        for frame in split:  # fail before writing anything large
+            require_image(frame, _PURPOSE)
     (root / "camera.json").write_text(json_text(camera_json(dataset, K, size)), encoding="utf-8")
     images = root / domain / "images"
     images.mkdir(parents=True)
     sources = set()
     for name, split_frames in splits.items():
-        for frame in split_frames:
-            sources.add(_write_image(frame, dataset.header, images))
-        labels = [label_entry(frame) for frame in split_frames]
-        (root / domain / LABEL_FILES[name]).write_text(json_text(labels), encoding="utf-8")
+        # the layout of json_text: one label per line, a final newline
+        path = root / domain / LABEL_FILES[name]
+        with JsonEntries(path, list, final_newline=True) as labels:
+            for frame in split_frames:
+                sources.add(_write_image(frame, dataset.header, images))
+                labels.append(label_entry(frame))
     source = "8-bit previews" if sources == {"preview_png8"} else "DN stretched to 8 bits"
     return [f"images: {source}", "principal point shifted +0.5 px (SPEED+ pixel origin)"]

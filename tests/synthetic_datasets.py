@@ -1,0 +1,143 @@
+"""Large synthetic datasets for the memory tests of validate, stats and export.
+
+``write_synthetic_dataset`` copies one real frame record of a small rendered dataset
+``count`` times, each copy a frame of its own: its frame and plan index changed, its pose
+turned about the optical axis and moved along it, and every label that follows from the
+pose recomputed (keypoints, their depths, the range; the crop's keypoints), so that
+``satsight validate`` finds it clean. Its files are either none (labels only) or the
+template frame's, shared by every frame (images are written once, not ``count`` times).
+The dataset is closed as ``generate`` closes one (``finalize_dataset``); no record is held.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tracemalloc
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from satsight.dataset.journal import file_checksum, record_line, sorted_journal_frames
+from satsight.dataset.manifest import finalize_dataset, write_manifest
+from satsight.frames.quaternion import (
+    canonical_quaternion,
+    matrix_from_quaternion,
+    quaternion_from_axis_angle,
+    quaternion_multiply,
+)
+
+#: Frames of the large labels-only dataset of the memory tests (tests/dataset/conftest.py):
+#: a journal of about 60 MB and a labels.json of about 100 MB.
+LARGE_FRAME_COUNT = 20_000
+
+
+def _pixels(points_cam: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """(..., N, 2) pixels of (..., N, 3) camera-frame points through K, as the labels."""
+    projected = points_cam @ K.T
+    return projected[..., :2] / projected[..., 2:]
+
+
+def moved_poses(record: dict, keypoints_body_m: np.ndarray, count: int) -> dict:
+    """The pose of ``record`` for each of ``count`` frames, and the labels that follow from
+    it: frame i is turned about the optical axis by 360° × i / count and moved along it by
+    up to 10 % of its range. Arrays with one row per frame."""
+    angles = 2 * np.pi * np.arange(count) / count
+    turns = np.stack([quaternion_from_axis_angle(np.array([0.0, 0.0, 1.0]), a) for a in angles])
+    q0 = np.array(record["q_cam_from_body"])
+    q = np.stack([canonical_quaternion(quaternion_multiply(turn, q0)) for turn in turns])
+    R = np.stack([matrix_from_quaternion(turn) for turn in turns])
+    t = R @ np.array(record["t_cam_from_body_m"])
+    t[:, 2] *= 1.0 + 0.1 * np.arange(count) / count
+    R_pose = np.stack([matrix_from_quaternion(v) for v in q])
+    points_cam = keypoints_body_m @ R_pose.transpose(0, 2, 1) + t[:, None, :]
+    K = np.array(record["K"])
+    poses = {"q": q, "t": t, "points_cam": points_cam, "pixels": _pixels(points_cam, K)}
+    if "crop" in record:
+        x0, y0 = record["crop"]["box_xyxy_px"][:2]
+        K_crop = K.copy()
+        K_crop[0, 2] -= x0
+        K_crop[1, 2] -= y0
+        poses["crop_pixels"] = _pixels(points_cam, K_crop)
+    return poses
+
+
+def moved_record(record: dict, poses: dict, index: int) -> dict:
+    """``record`` as frame ``index``, with its pose and labels from ``poses``."""
+    points_cam = poses["points_cam"][index]
+    if (points_cam[:, 2] <= 0).any():
+        raise ValueError("a keypoint behind the camera: choose a template frame further away")
+    out = {
+        **record,
+        "frame_index": index,
+        "plan_index": index,
+        "q_cam_from_body": poses["q"][index].tolist(),
+        "t_cam_from_body_m": poses["t"][index].tolist(),
+        "range_m": float(np.linalg.norm(poses["t"][index])),
+        "keypoints_px": poses["pixels"][index].tolist(),
+        "keypoints_depth_m": points_cam[:, 2].tolist(),
+        "phase_angle_deg": 180.0 * ((index * 0.618034) % 1.0),
+    }
+    if "crop" in record:
+        out["crop"] = {**record["crop"], "keypoints_px": poses["crop_pixels"][index].tolist()}
+    return out
+
+
+def write_synthetic_dataset(
+    root: Path,
+    template: Path,
+    count: int,
+    files: tuple[str, ...] = (),
+    edit: Callable[[dict], None] | None = None,
+) -> Path:
+    """A complete dataset of ``count`` frames in ``root`` made from the first frame of
+    the dataset in ``template``; returns root.
+
+    files: the template frame's outputs (``preview_png8``, ...) every frame shares (their
+    files copied once); none: a labels-only dataset. edit(record): a change made to each
+    record after it is built (to break it).
+    """
+    root.mkdir(parents=True)
+    manifest = json.loads((template / "manifest.json").read_text(encoding="utf-8"))
+    with open(template / "journal.jsonl", "rb") as journal:
+        first = json.loads(journal.readline())
+    manifest.update(frame_count=count, plan_indices=list(range(count)), shard=None)
+    manifest["outputs"] = {**manifest["outputs"], "contact_sheet": False}
+    shutil.copytree(template / "model", root / "model")
+    write_manifest(root, manifest)
+    record = {**first, "files": {}, "checksums": {}}
+    if "crop" in record:
+        record["crop"] = {**record["crop"], "files": {}}
+    for key in files:
+        relative = first["files"][key]
+        (root / relative).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(template / relative, root / relative)
+        record["files"][key] = relative
+        record["checksums"][relative] = file_checksum(root / relative)
+    keypoints = np.array(manifest["target"]["keypoints_body_m"], dtype=np.float64)
+    poses = moved_poses(record, keypoints, count)
+
+    def lines() -> Iterator[bytes]:
+        for index in range(count):
+            moved = moved_record(record, poses, index)
+            if edit is not None:
+                edit(moved)
+            yield record_line(moved)
+
+    finalize_dataset(root, manifest, lines())
+    return root
+
+
+def held_records_bytes(root: Path, sample: int = 200) -> float:
+    """The memory every frame record of a closed dataset would take as Python objects,
+    held at once: that of its first ``sample`` records, measured, scaled to all. Call it
+    outside any other tracemalloc measurement."""
+    frames = sorted_journal_frames(root)
+    sample = min(sample, len(frames))
+    tracemalloc.start()
+    held = [frames[i] for i in range(sample)]
+    size, _ = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    del held
+    return size * len(frames) / sample
