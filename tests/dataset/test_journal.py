@@ -47,10 +47,15 @@ def write_journal(root: Path, records: list[dict]) -> None:
 
 
 @pytest.mark.parametrize("count", [0, 1, 3])
-def test_streamed_labels_are_the_json_document_byte_for_byte(count: int) -> None:
+def test_labels_are_the_manifest_with_one_journal_line_per_frame(count: int) -> None:
     records = [record(i) for i in range(count)]
-    streamed = b"".join(labels_lines(MANIFEST, records))
-    assert streamed == json_bytes({**MANIFEST, "frames": records})
+    text = b"".join(labels_lines(MANIFEST, map(record_line, records))).decode("utf-8")
+    assert json.loads(text) == {**MANIFEST, "frames": records}
+    assert text.startswith(json_bytes(MANIFEST).decode("utf-8")[:-3])  # the header, indented
+    lines = text.splitlines()
+    assert len(lines[-2 - count : -2]) == count
+    for i, line in enumerate(lines[-2 - count : -2]):
+        assert json.loads(line.strip().rstrip(",")) == records[i]
 
 
 def test_a_torn_last_line_is_not_a_commit_and_is_cut_before_appending(tmp_path: Path) -> None:

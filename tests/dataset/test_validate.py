@@ -69,15 +69,17 @@ def labels_of(root: Path) -> dict:
 def forge_records(root: Path, edit: Callable[[list[dict]], None]) -> None:
     """Edit the frame records in labels.json and the journal alike, and re-sum complete.json."""
     labels = labels_of(root)
-    edit(labels["frames"])
-    labels_data = json_bytes(labels)
-    journal_data = b"".join(record_line(r) for r in labels["frames"])
+    frames = labels.pop("frames")
+    edit(frames)
+    journal_lines = [record_line(r) for r in frames]
+    labels_data = b"".join(labels_lines(labels, journal_lines))
+    journal_data = b"".join(journal_lines)
     (root / "labels.json").write_bytes(labels_data)
     (root / "journal.jsonl").write_bytes(journal_data)
     summary = json.loads((root / "complete.json").read_text(encoding="utf-8"))
     summary["labels_sha256"] = hashlib.sha256(labels_data).hexdigest()
     summary["journal_sha256"] = hashlib.sha256(journal_data).hexdigest()
-    summary["frame_count"] = len(labels["frames"])
+    summary["frame_count"] = len(frames)
     (root / "complete.json").write_bytes(json_bytes(summary))
 
 
@@ -401,7 +403,7 @@ def test_a_labels_edit_is_found_in_a_large_dataset_with_bounded_memory(
 
     labels = root / "labels.json.new"
     with open(labels, "wb") as stream:
-        for piece in labels_lines(manifest, records()):
+        for piece in labels_lines(manifest, map(record_line, records())):
             stream.write(piece)
     labels.replace(root / "labels.json")
     records_bytes = held_records_bytes(root)
