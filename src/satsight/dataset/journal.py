@@ -108,12 +108,20 @@ class JournalFrames(Sequence):
             stream.seek(int(self.offsets[index]))
             return stream.read(int(self.lengths[index]))
 
-    def raw_lines(self) -> Iterator[bytes]:
-        """Every frame's journal line, in order, through one open file."""
+    def raw_lines(self, positions: Iterable[int] | None = None) -> Iterator[bytes]:
+        """The journal lines at ``positions`` (default: every frame, in order), read
+        through one open file."""
+        if positions is None:
+            positions = range(len(self))
         with open(self.path, "rb") as stream:
-            for offset, length in zip(self.offsets, self.lengths, strict=True):
-                stream.seek(int(offset))
-                yield stream.read(int(length))
+            for position in positions:
+                stream.seek(int(self.offsets[position]))
+                yield stream.read(int(self.lengths[position]))
+
+    def records_at(self, positions: Iterable[int]) -> Iterator[dict]:
+        """The records at ``positions``, parsed one at a time."""
+        for line in self.raw_lines(positions):
+            yield json.loads(line)
 
     def __getitem__(self, index):
         if isinstance(index, slice):

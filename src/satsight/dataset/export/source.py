@@ -13,7 +13,6 @@ A dataset of 10^6 frames holds several GB of records: an export never holds them
 
 from __future__ import annotations
 
-import json
 from array import array
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -112,14 +111,11 @@ def scan_frames(dataset: Dataset, crop_requested: bool) -> FrameTable:
 def records_at(frames: Sequence[dict], positions: np.ndarray) -> Iterator[dict]:
     """The records at ``positions`` of a dataset's frames, one at a time (a journal is
     read through one open file)."""
-    if not isinstance(frames, JournalFrames):
-        for position in positions:
-            yield frames[int(position)]
+    if isinstance(frames, JournalFrames):
+        yield from frames.records_at(positions)
         return
-    with open(frames.path, "rb") as stream:
-        for position in positions:
-            stream.seek(int(frames.offsets[position]))
-            yield json.loads(stream.read(int(frames.lengths[position])))
+    for position in positions:
+        yield frames[int(position)]
 
 
 class ExportFrames:
