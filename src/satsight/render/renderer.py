@@ -45,11 +45,9 @@ from satsight.render.backend import use_variant
 from satsight.render.buffers import RadianceImage
 from satsight.render.settings import RenderSettings
 from satsight.render.surface import SurfaceModel, regularized
+from satsight.render.target_geometry import TargetGeometry
 from satsight.scene.mesh import TargetMesh
 
-# Shadow- and bounce-ray origin offset along the normal, relative to the target's size.
-_RAY_OFFSET_PER_M = 2e-5
-_MIN_RAY_OFFSET_M = 1e-5
 # Light paths traced per kernel launch when several passes share one launch.
 _LANES_PER_LAUNCH = 1 << 20
 # Opacity above which a surface counts as solid for the label images.
@@ -86,36 +84,11 @@ class Renderer:
 
         self._mi, self._dr = mi, dr
         self.mesh = mesh
-        self._render_origin_body_m = mesh.center_m
-        vertices = mesh.vertices_m - self._render_origin_body_m
-        faces = mesh.faces
-        tri = vertices[faces]
-        e1 = tri[:, 1] - tri[:, 0]
-        e2 = tri[:, 2] - tri[:, 0]
-        normal = np.cross(e1, e2)
-        length = np.linalg.norm(normal, axis=1, keepdims=True)
-        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
-
-        mi_mesh = mi.Mesh(mesh.name, len(vertices), len(faces), has_vertex_normals=False)
-        params = mi.traverse(mi_mesh)
-        params["vertex_positions"] = mi.Float(vertices.astype(np.float32).ravel())
-        params["faces"] = mi.UInt32(faces.astype(np.uint32).ravel())
-        params.update()
-        self._scene = mi.load_dict({"type": "scene", "target": mi_mesh})
-
-        def vec3(a: np.ndarray):
-            a = np.ascontiguousarray(a, dtype=np.float32)
-            return mi.Vector3f(mi.Float(a[:, 0]), mi.Float(a[:, 1]), mi.Float(a[:, 2]))
-
-        self._face_v0 = vec3(tri[:, 0])
-        self._face_e1 = vec3(e1)
-        self._face_e2 = vec3(e2)
-        self._face_n = vec3(normal)
-        self._face_part = mi.UInt32(mesh.face_part_index.astype(np.uint32))
         materials = [mesh.part_material(i) for i in range(len(mesh.part_names))]
-        opacity = np.array([m.alpha for m in materials], dtype=np.float32)
-        self._transparent = bool(np.any(opacity < 1.0))
-        self._part_opacity = mi.Float(opacity)
+        self._geometry = TargetGeometry(
+            mesh, np.array([m.alpha for m in materials]), self.settings.max_transparent_layers
+        )
+        self._transparent = self._geometry.transparent
         self._surface = SurfaceModel(materials, self.settings)
         # Surfaces reached by a bounce: roughness floored (path regularisation).
         self._surface_indirect = SurfaceModel(
@@ -126,18 +99,9 @@ class Renderer:
         self._l_max = self.settings.sh_order
         kernel = self._surface.diffuse_band_factors(self._l_max)  # (parts, l_max + 1)
         self._band_factors = mi.Float(np.asarray(kernel, dtype=np.float32).ravel())
-        dr.eval(
-            self._face_v0,
-            self._face_e1,
-            self._face_e2,
-            self._face_n,
-            self._face_part,
-            self._part_opacity,
-            self._band_factors,
-        )
+        dr.eval(self._band_factors)
         self._surface.evaluate_tables()
         self._surface_indirect.evaluate_tables()
-        self._ray_offset_m = max(_MIN_RAY_OFFSET_M, _RAY_OFFSET_PER_M * mesh.bounding_radius_m)
         self._n_dims = 2 + 3 * (self.settings.bounces + 1)
         self._generators = _kronecker_generators(self._n_dims)
 
@@ -162,7 +126,7 @@ class Renderer:
         s = self.settings
         width, height = camera.width_px, camera.height_px
         body_from_cam = cam_from_body.inverse()
-        camera_render_m = body_from_cam.t_a_from_b_m - self._render_origin_body_m
+        camera_render_m = body_from_cam.t_a_from_b_m - self._geometry.origin_body_m
         if cam_from_body.apply(self.mesh.center_m)[2] <= 0:
             raise SatsightError(
                 "the target's bounding-box centre is behind the camera (z_cam <= 0); check the pose"
@@ -177,8 +141,8 @@ class Renderer:
             "cy": mi.Float(float(camera.cy_px)),
             "sun_dir": mi.Vector3f(*(float(c) for c in light.sun_direction_body)),
             "sun_e": mi.Float(float(light.sun_irradiance_w_m2)),
-            "eps": mi.Float(float(self._ray_offset_m)),
-            "t_start": mi.Float(self._ray_start_m(camera_render_m)),
+            "eps": mi.Float(float(self._geometry.ray_offset_m)),
+            "t_start": mi.Float(self._geometry.ray_start_m(camera_render_m)),
             # Two 32-bit keys of the frame seed, for the TEA hashes that seed the generators.
             "key0": mi.UInt32(int(seed) & 0xFFFFFFFF),
             "key1": mi.UInt32((int(seed) >> 32) & 0xFFFFFFFF),
@@ -292,72 +256,6 @@ class Renderer:
                 coeffs += light.sun_irradiance_w_m2 * sun[:, None]
         return coeffs
 
-    def _ray_start_m(self, camera_render_m: np.ndarray) -> float:
-        """Distance along every primary ray that is surely in front of the target."""
-        margin_m = 1e-3 * self.mesh.bounding_radius_m + 1e-3
-        gap = np.linalg.norm(camera_render_m) - self.mesh.bounding_radius_m
-        return float(max(0.0, gap - margin_m))
-
-    def _surface_at(self, face, u, v, active) -> dict:
-        """Hit point (from the barycentrics u, v on triangle ``face``), unit geometric
-        normal and part of a hit, with the hit's face, u and v."""
-        mi, dr = self._mi, self._dr
-        p = (
-            dr.gather(mi.Vector3f, self._face_v0, face, active)
-            + u * dr.gather(mi.Vector3f, self._face_e1, face, active)
-            + v * dr.gather(mi.Vector3f, self._face_e2, face, active)
-        )
-        return {
-            "p": p,
-            "n_geo": dr.gather(mi.Vector3f, self._face_n, face, active),
-            "part": dr.gather(mi.UInt32, self._face_part, face, active),
-            "face": face,
-            "u": u,
-            "v": v,
-        }
-
-    def _intersect(self, origin, direction, active, opacity_sample, coherent=False) -> dict:
-        """First surface along a ray that the ray does not pass through.
-
-        opacity_sample(layer) -> Float in [0, 1): a surface of opacity alpha stops the ray
-        where the sample is < alpha. Returns hit, t (from ``origin``) and the surface
-        (see ``_surface_at``).
-        """
-        mi, dr = self._mi, self._dr
-        pi = self._scene.ray_intersect_preliminary(
-            mi.Ray3f(origin, direction), coherent=coherent, active=active
-        )
-        hit = active & pi.is_valid()
-        surf = self._surface_at(pi.prim_index, pi.prim_uv.x, pi.prim_uv.y, hit)
-        t = dr.select(hit, pi.t, 0.0)
-        if not self._transparent:
-            return {"hit": hit, "t": t, **surf}
-        stopped = hit & (opacity_sample(0) < dr.gather(mi.Float, self._part_opacity, surf["part"]))
-        moving = hit & ~stopped
-        for layer in range(1, self.settings.max_transparent_layers):
-            # Continue just past the surface the ray went through.
-            step_origin = surf["p"] + direction * self._ray_offset_m
-            pi = self._scene.ray_intersect_preliminary(
-                mi.Ray3f(step_origin, direction), coherent=coherent, active=moving
-            )
-            again = moving & pi.is_valid()
-            nxt = self._surface_at(pi.prim_index, pi.prim_uv.x, pi.prim_uv.y, again)
-            t_next = dr.dot(step_origin - origin, direction) + pi.t
-            for key in nxt:
-                surf[key] = dr.select(again, nxt[key], surf[key])
-            t = dr.select(again, t_next, t)
-            opaque = opacity_sample(layer) < dr.gather(mi.Float, self._part_opacity, nxt["part"])
-            stopped |= again & opaque
-            moving = again & ~opaque
-        return {"hit": stopped, "t": dr.select(stopped, t, 0.0), **surf}
-
-    def _visible(self, origin, direction, active, rng):
-        """Whether a ray from ``origin`` escapes the target (shadow test), Bool."""
-        if not self._transparent:
-            return ~self._scene.ray_test(self._mi.Ray3f(origin, direction), active)
-        blocked = self._intersect(origin, direction, active, lambda layer: rng.next_float32())
-        return ~blocked["hit"]
-
     def _primary(self, frame: dict, px, py, opacity_sample, hits: dict | None = None) -> dict:
         """Primary rays through pixel positions (px, py) and the surfaces they stop at.
 
@@ -373,11 +271,13 @@ class Renderer:
             # Start the ray just outside the target's bounding sphere with one rounding
             # (FMA), so the start point and Embree's hit distances keep float32 precision.
             origin = dr.fma(d_body, frame["t_start"], frame["camera_body"])
-            geo = self._intersect(origin, d_body, mi.Bool(True), opacity_sample, coherent=True)
+            geo = self._geometry.intersect(
+                origin, d_body, mi.Bool(True), opacity_sample, coherent=True
+            )
             geo["t"] = geo["t"] + frame["t_start"]
         else:
             hit = mi.Bool(True)
-            geo = {"hit": hit, **self._surface_at(hits["face"], hits["u"], hits["v"], hit)}
+            geo = {"hit": hit, **self._geometry.surface_at(hits["face"], hits["u"], hits["v"], hit)}
         n = geo["n_geo"]
         geo["n"] = dr.select(dr.dot(n, d_body) > 0.0, -n, n)
         geo["d_cam"] = d_cam
@@ -396,26 +296,22 @@ class Renderer:
     def _diffuse_environment_table(self, frame: dict):
         """Per face side, the unshadowed environment's diffuse radiance over kd_eq,
         1 / pi * sum_l k_l E_l(n) (Color3f, W m^-2 sr^-1): entry ``face`` for the side of
-        the stored normal, ``face + faces`` for the other (see ``_face_side``).
+        the stored normal, ``face + faces`` for the other (see ``TargetGeometry.face_side``).
 
         Normals are flat per face, so this one small kernel per frame replaces the SH
         evaluation at every shaded lane by a gather.
         """
         mi, dr = self._mi, self._dr
-        faces = dr.width(self._face_part)
+        faces = dr.width(self._geometry.face_part)
         side = dr.arange(mi.UInt32, 2 * faces)
         face = side % faces
-        n = dr.gather(mi.Vector3f, self._face_n, face)
+        n = dr.gather(mi.Vector3f, self._geometry.face_n, face)
         n = dr.select(side < faces, n, -n)
-        table = self._diffuse_environment(frame, n, dr.gather(mi.UInt32, self._face_part, face))
+        table = self._diffuse_environment(
+            frame, n, dr.gather(mi.UInt32, self._geometry.face_part, face)
+        )
         dr.eval(table)
         return table
-
-    def _face_side(self, face, n_geo, towards):
-        """Index into the per-face-side tables: ``face`` where the stored normal n_geo
-        faces ``towards``, ``face + faces`` where the surface is seen from its back."""
-        faces = self._dr.width(self._face_part)
-        return self._dr.select(self._dr.dot(n_geo, towards) < 0.0, face + faces, face)
 
     def _diffuse_environment(self, frame: dict, n, part):
         """Diffuse radiance over kd_eq from the unshadowed environment at unit normal n:
@@ -517,7 +413,7 @@ class Renderer:
             "n": geo["n"],
             "part": geo["part"],
             "wo": -geo["d_body"],
-            "side": self._face_side(geo["face"], geo["n_geo"], -geo["d_body"]),
+            "side": self._geometry.face_side(geo["face"], geo["n_geo"], -geo["d_body"]),
             "throughput": mi.Color3f(1.0),
         }
         active = geo["hit"]
@@ -544,7 +440,7 @@ class Renderer:
             # The same stream as the occlusion test, so a partly transparent surface lets
             # the ray through (or not) exactly as it did there.
             opacity, ld = self._streams(frame, pixel, pass_index, self._bounce_segment(depth))
-            found = self._intersect(
+            found = self._geometry.intersect(
                 ray["origin"],
                 ray["direction"],
                 mi.Bool(True),
@@ -557,7 +453,7 @@ class Renderer:
                 "n": dr.select(dr.dot(ng, wo) < 0.0, -ng, ng),
                 "part": found["part"],
                 "wo": wo,
-                "side": self._face_side(found["face"], ng, wo),
+                "side": self._geometry.face_side(found["face"], ng, wo),
                 "throughput": ray["throughput"],
             }
             # Occlusion test and hit search agree but for rounding at edges; a path whose
@@ -578,10 +474,10 @@ class Renderer:
         """Radiance a path picks up at one surface vertex, and the ray it continues on.
 
         vertex: p, n (unit normal on the side of wo), part, wo (towards the previous
-        vertex), side (see ``_face_side``), throughput (path weight so far). rng(segment):
-        the path's PCG32 of a stream segment. Returns (radiance Color3f, ray) with ray None
-        at the path's last vertex, else ``hit`` (the ray meets the target), origin,
-        direction and the path's throughput after this vertex.
+        vertex), side (see ``TargetGeometry.face_side``), throughput (path weight so far).
+        rng(segment): the path's PCG32 of a stream segment. Returns (radiance Color3f, ray)
+        with ray None at the path's last vertex, else ``hit`` (the ray meets the target),
+        origin, direction and the path's throughput after this vertex.
         """
         mi, dr = self._mi, self._dr
         s = self.settings
@@ -598,7 +494,7 @@ class Renderer:
             wi = frame["sun_dir"]
             wi_local = shading.to_local(wi)
             lit = active & (wi_local.z > 0.0) & (frame["sun_e"] > 0.0)
-            lit &= self._visible(origin, wi, lit, rng(self._shading_segment(depth)))
+            lit &= self._geometry.visible(origin, wi, lit, rng(self._shading_segment(depth)))
             f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
             irradiance = frame["sun_e"] * wi_local.z
             radiance += dr.select(lit, (f_diffuse + f_specular) * irradiance, 0.0)
@@ -624,7 +520,7 @@ class Renderer:
             escaped = valid
         else:
             bounce_rng = rng(self._bounce_segment(depth))
-            escaped = valid & self._visible(origin, wi, valid, bounce_rng)
+            escaped = valid & self._geometry.visible(origin, wi, valid, bounce_rng)
         if env_on:
             env_weight = weight
             if s.environment == "unshadowed":
