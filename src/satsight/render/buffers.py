@@ -3,8 +3,25 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+
+
+@lru_cache(maxsize=8)
+def margin_pixels_xy(width: int, height: int, margin_px: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel coordinates (x, y), int32, of the ring ``margin_px`` wide around a width x
+    height frame, in row-major order of the padded frame: x in [-m, width + m), y in
+    [-m, height + m), outside the frame. Read-only arrays (cached)."""
+    m = int(margin_px)
+    outside = np.ones((height + 2 * m, width + 2 * m), dtype=bool)
+    outside[m : m + height, m : m + width] = False
+    y, x = np.nonzero(outside)
+    x = (x - m).astype(np.int32)
+    y = (y - m).astype(np.int32)
+    x.setflags(write=False)
+    y.setflags(write=False)
+    return x, y
 
 
 @dataclass(frozen=True)
@@ -32,12 +49,29 @@ class RadianceImage:
     part_id: (H, W) uint16 part index + 1 of the visible surface, 0 for background.
     normals_cam: (H, W, 3) float32 unit surface normals in the camera frame, facing the
     camera; zero for background.
+    margin_px, margin_radiance_w_m2_sr: the radiance (n, 3) of the pixels of a ring
+    ``margin_px`` wide around the frame, in ``margin_pixels_xy`` order (None without one).
     """
 
     radiance_w_m2_sr: np.ndarray
     depth_m: np.ndarray
     part_id: np.ndarray
     normals_cam: np.ndarray
+    margin_px: int = 0
+    margin_radiance_w_m2_sr: np.ndarray | None = None
+
+    def padded_radiance_w_m2_sr(self) -> np.ndarray:
+        """(H + 2m, W + 2m, 3) float32 radiance of the frame with its margin ring (a copy;
+        the frame itself when there is no margin)."""
+        m = self.margin_px
+        if m == 0 or self.margin_radiance_w_m2_sr is None:
+            return self.radiance_w_m2_sr
+        h, w = self.shape
+        padded = np.zeros((h + 2 * m, w + 2 * m, 3), dtype=np.float32)
+        padded[m : m + h, m : m + w] = self.radiance_w_m2_sr
+        x, y = margin_pixels_xy(w, h, m)
+        padded[y + m, x + m] = self.margin_radiance_w_m2_sr
+        return padded
 
     @property
     def object_mask(self) -> np.ndarray:

@@ -42,7 +42,7 @@ from satsight.frames.rigid import RigidTransform
 from satsight.lighting import sh
 from satsight.lighting.light_field import LightField
 from satsight.render.backend import use_variant
-from satsight.render.buffers import RadianceImage
+from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.render.settings import RenderSettings
 from satsight.render.surface import SurfaceModel, regularized
 from satsight.render.target_geometry import TargetGeometry
@@ -112,13 +112,16 @@ class Renderer:
         cam_from_body: RigidTransform,
         light: LightField,
         seed: int = 0,
+        margin_px: int = 0,
     ) -> RadianceImage:
         """Render one frame.
 
         camera: intrinsics and image size. cam_from_body: pose of the target in the camera
         frame. light: the light field at the target, body frame. seed: this frame's seed
         (e.g. from ``SeedSequence([scenario_seed, frame_index])``), so a frame's noise does
-        not depend on which frames were rendered before it.
+        not depend on which frames were rendered before it. margin_px: also render the
+        radiance of a ring this wide around the frame (``RadianceImage.margin_radiance_w_m2_sr``),
+        which the optics blur into the frame's edge pixels.
         """
         mi, dr = self._mi, self._dr
         if mi.variant() != self.variant:  # another renderer switched Mitsuba's variant
@@ -146,16 +149,56 @@ class Renderer:
             # Two 32-bit keys of the frame seed, for the TEA hashes that seed the generators.
             "key0": mi.UInt32(int(seed) & 0xFFFFFFFF),
             "key1": mi.UInt32((int(seed) >> 32) & 0xFFFFFFFF),
-            "width": width,
             "env": [mi.Color3f(*(float(v) for v in row)) for row in env],
         }
-        dr.make_opaque(*(v for k, v in frame.items() if k not in ("env", "width")), *frame["env"])
+        dr.make_opaque(*(v for k, v in frame.items() if k != "env"), *frame["env"])
         if s.environment == "unshadowed":
             frame["diffuse_env"] = self._diffuse_environment_table(frame)
 
         n_pix = width * height
+        frame["pixel_xy"] = lambda pixel: (mi.Float(pixel % width), mi.Float(pixel // width))
+        radiance, labels = self._radiance_passes(frame, n_pix, with_labels=True)
+        depth, part_id, normals = labels
+        part_pairs = self._pack_uint16_pairs(part_id)
+        dr.eval(radiance, depth, part_pairs, normals)
+        margin_radiance = None
+        if margin_px > 0:
+            margin_radiance = self._render_margin(frame, width, height, margin_px)
+
+        return RadianceImage(
+            radiance_w_m2_sr=radiance.numpy().reshape(height, width, 3),
+            depth_m=depth.numpy().reshape(height, width),
+            part_id=part_pairs.numpy().view(np.uint16)[:n_pix].reshape(height, width),
+            normals_cam=normals.numpy().reshape(height, width, 3),
+            margin_px=int(margin_px),
+            margin_radiance_w_m2_sr=margin_radiance,
+        )
+
+    def _render_margin(self, frame: dict, width: int, height: int, margin_px: int) -> np.ndarray:
+        """(n, 3) float32 radiance of the pixels of a ``margin_px`` wide ring around the
+        frame (``margin_pixels_xy`` order): the light the optics spread into the frame from
+        just outside it. Its random streams are apart from the frame's (another key)."""
+        mi, dr = self._mi, self._dr
+        ring_x, ring_y = margin_pixels_xy(width, height, margin_px)
+        table_x = mi.Float(ring_x.astype(np.float32))
+        table_y = mi.Float(ring_y.astype(np.float32))
+        ring = dict(frame)
+        ring["key0"] = frame["key0"] ^ 0x5BD1E995
+        ring["pixel_xy"] = lambda pixel: (
+            dr.gather(mi.Float, table_x, pixel),
+            dr.gather(mi.Float, table_y, pixel),
+        )
+        radiance, _ = self._radiance_passes(ring, len(ring_x), with_labels=False)
+        dr.eval(radiance)
+        return radiance.numpy().reshape(-1, 3)
+
+    def _radiance_passes(self, frame: dict, n_pix: int, with_labels: bool) -> tuple:
+        """Radiance (flat Float, three values per pixel) of pixels 0..n_pix-1 (positions
+        from ``frame["pixel_xy"]``), averaged over the settings' passes, and, with
+        ``with_labels``, the label images (depth, part id, normals) of the pixel centres."""
+        mi, dr = self._mi, self._dr
+        s = self.settings
         idx = dr.arange(mi.UInt32, n_pix)
-        px, py = self._pixel_xy(idx, width)
 
         # Passes are traced in launches of up to _LANES_PER_LAUNCH paths: one pass per launch
         # for large frames (memory stays that of a one-sample frame), many for small ones
@@ -163,7 +206,7 @@ class Renderer:
         per_launch = max(1, min(s.passes, _LANES_PER_LAUNCH // n_pix))
         # With one pixel-centre pass and no transparency the pass's primary rays are the
         # label rays: labels and radiance then come from one trace.
-        centre_labels = s.passes == 1 and not self._transparent
+        centre_labels = with_labels and s.passes == 1 and not self._transparent
         # Paths that leave the pixel's primary ray are shaded only where it hits the
         # target: a first kernel finds the hits, dr.compress lists them, the shading kernel
         # runs on those lanes alone (a target covering 5 % of the frame costs 5 %).
@@ -212,23 +255,15 @@ class Renderer:
                 dr.scatter_add(radiance, dr.block_sum(lane_sum, count), idx)
             dr.eval(radiance, *labels)
             first += count
-        if not centre_labels:
+        if with_labels and not centre_labels:
             # Labels: the ray through each pixel centre; transparent parts count as solid
             # above the label opacity threshold.
+            px, py = frame["pixel_xy"](idx)
             geo = self._primary(frame, px, py, lambda layer: mi.Float(LABEL_OPACITY_THRESHOLD))
             labels = self._labels(frame, geo, idx)
-        depth, part_id, normals = labels
         if s.passes > 1:
             radiance = radiance * (1.0 / s.passes)
-        part_pairs = self._pack_uint16_pairs(part_id)
-        dr.eval(radiance, depth, part_pairs, normals)
-
-        return RadianceImage(
-            radiance_w_m2_sr=radiance.numpy().reshape(height, width, 3),
-            depth_m=depth.numpy().reshape(height, width),
-            part_id=part_pairs.numpy().view(np.uint16)[:n_pix].reshape(height, width),
-            normals_cam=normals.numpy().reshape(height, width, 3),
-        )
+        return radiance, labels
 
     def _pack_uint16_pairs(self, values):
         """UInt32 values < 2^16, two per UInt32 in memory order, so that numpy reads the
@@ -342,10 +377,6 @@ class Renderer:
         dr.scatter(normals, n_cam, pixel)  # one packet write of the three components
         return depth, part_id, normals
 
-    def _pixel_xy(self, pixel, width: int):
-        mi = self._mi
-        return mi.Float(pixel % width), mi.Float(pixel // width)
-
     def _streams(self, frame: dict, idx, pass_index, segment: int):
         """Random numbers of the paths of pixel ``idx`` in pass ``pass_index`` (UInt32):
         (rng, ld) with rng a PCG32 for this path segment and ld(dim) the path's
@@ -379,7 +410,7 @@ class Renderer:
         low-discrepancy sample ``ld``."""
         mi = self._mi
         s = self.settings
-        px, py = self._pixel_xy(idx, frame["width"])
+        px, py = frame["pixel_xy"](idx)
         rng, ld = self._streams(frame, idx, pass_index, 0)
         ss = float(s.supersampling)
         if s.samples_per_pixel == 1:
