@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from satsight.errors import SatsightError
+from satsight.lighting.scene_bodies import SceneBody
 
 
 @dataclass(frozen=True)
@@ -28,11 +29,16 @@ class LightField:
     sh_radiance_w_m2_sr: (n_coeffs, 3) real SH coefficients, per colour channel, of the
     environment radiance L_env(w) in W m^-2 sr^-1 (the Sun excluded), body frame.
     ``n_coeffs = (l_max + 1)^2``, index ``l (l + 1) + m``.
+    bodies: the Earth and the Moon as bodies in the scene (``SceneBody``), at most one of
+    each. The renderer's ``sampled`` environment traces rays to them instead of using the
+    SH expansion (which then holds the same light, for the ``sh`` and ``unshadowed``
+    modes and for the labels); every mode shows them behind the target.
     """
 
     sun_direction_body: np.ndarray
     sun_irradiance_w_m2: float
     sh_radiance_w_m2_sr: np.ndarray
+    bodies: tuple[SceneBody, ...] = ()
 
     def __post_init__(self) -> None:
         d = np.asarray(self.sun_direction_body, dtype=np.float64).reshape(3)
@@ -54,6 +60,11 @@ class LightField:
                 f"{np.shape(self.sh_radiance_w_m2_sr)}"
             )
         object.__setattr__(self, "sh_radiance_w_m2_sr", c)
+        bodies = tuple(self.bodies)
+        names = [b.name for b in bodies]
+        if len(set(names)) != len(names) or not all(isinstance(b, SceneBody) for b in bodies):
+            raise SatsightError(f"bodies must be SceneBody objects, one per name; got {names}")
+        object.__setattr__(self, "bodies", bodies)
 
     @property
     def l_max(self) -> int:

@@ -51,6 +51,8 @@ class RadianceImage:
     camera; zero for background.
     margin_px, margin_radiance_w_m2_sr: the radiance (n, 3) of the pixels of a ring
     ``margin_px`` wide around the frame, in ``margin_pixels_xy`` order (None without one).
+    background_id: (H, W) uint8 body seen behind the target (see ``background_mask``),
+    None when no body is in view.
     """
 
     radiance_w_m2_sr: np.ndarray
@@ -59,6 +61,14 @@ class RadianceImage:
     normals_cam: np.ndarray
     margin_px: int = 0
     margin_radiance_w_m2_sr: np.ndarray | None = None
+    background_id: np.ndarray | None = None
+
+    def background_mask(self) -> np.ndarray:
+        """(H, W) uint8: what a pixel-centre ray that misses the target meets: 0 space,
+        1 the Earth, 2 the Moon; 0 where the target is (zeros when no body is in view)."""
+        if self.background_id is None:
+            return np.zeros(self.shape, dtype=np.uint8)
+        return self.background_id
 
     def padded_radiance_w_m2_sr(self) -> np.ndarray:
         """(H + 2m, W + 2m, 3) float32 radiance of the frame with its margin ring (a copy;

@@ -42,6 +42,7 @@ from satsight.frames.rigid import RigidTransform
 from satsight.lighting import sh
 from satsight.lighting.light_field import LightField
 from satsight.render.backend import use_variant
+from satsight.render.body_light import BodyLight
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.render.settings import RenderSettings
 from satsight.render.surface import SurfaceModel, regularized
@@ -102,7 +103,11 @@ class Renderer:
         dr.eval(self._band_factors)
         self._surface.evaluate_tables()
         self._surface_indirect.evaluate_tables()
-        self._n_dims = 2 + 3 * (self.settings.bounces + 1)
+        self._body_light = BodyLight(self._geometry.origin_body_m)
+        # Low-discrepancy dimensions: 2 for the pixel position, 3 per path vertex for the
+        # BRDF sample, then 3 per path vertex for the body-light sample.
+        self._light_dims = 2 + 3 * (self.settings.bounces + 1)
+        self._n_dims = self._light_dims + 3 * (self.settings.bounces + 1)
         self._generators = _kronecker_generators(self._n_dims)
 
     # ------------------------------------------------------------------------------------
@@ -152,15 +157,23 @@ class Renderer:
             "env": [mi.Color3f(*(float(v) for v in row)) for row in env],
         }
         dr.make_opaque(*(v for k, v in frame.items() if k != "env"), *frame["env"])
+        bodies = self._body_light.frame_values(light.bodies)
+        frame["bodies"] = bodies
+        frame["env_zero"] = not np.any(env)
+        # Bodies light the target in the sampled mode; every mode shows them behind it.
+        frame["body_light"] = s.environment == "sampled" and bodies["any"]
+        frame["background"] = bodies["any"] and self._bodies_in_view(
+            camera, cam_from_body, light, margin_px
+        )
         if s.environment == "unshadowed":
             frame["diffuse_env"] = self._diffuse_environment_table(frame)
 
         n_pix = width * height
         frame["pixel_xy"] = lambda pixel: (mi.Float(pixel % width), mi.Float(pixel // width))
         radiance, labels = self._radiance_passes(frame, n_pix, with_labels=True)
-        depth, part_id, normals = labels
+        depth, part_id, normals, background = labels
         part_pairs = self._pack_uint16_pairs(part_id)
-        dr.eval(radiance, depth, part_pairs, normals)
+        dr.eval(radiance, depth, part_pairs, normals, *background)
         margin_radiance = None
         if margin_px > 0:
             margin_radiance = self._render_margin(frame, width, height, margin_px)
@@ -172,7 +185,25 @@ class Renderer:
             normals_cam=normals.numpy().reshape(height, width, 3),
             margin_px=int(margin_px),
             margin_radiance_w_m2_sr=margin_radiance,
+            background_id=background[0].numpy().astype(np.uint8).reshape(height, width)
+            if background
+            else None,
         )
+
+    def _bodies_in_view(
+        self, camera: PinholeCamera, cam_from_body: RigidTransform, light: LightField, margin: int
+    ) -> bool:
+        """Whether the bounding sphere of a body reaches the frame (with its margin)."""
+        half_w = max(camera.cx_px, camera.width_px - 1 - camera.cx_px) + margin + 1
+        half_h = max(camera.cy_px, camera.height_px - 1 - camera.cy_px) + margin + 1
+        half_diagonal = math.atan(math.hypot(half_w, half_h) / camera.focal_length_px)
+        for body in light.bodies:
+            c_cam = cam_from_body.apply(body.center_body_m)
+            distance = float(np.linalg.norm(c_cam))
+            off_axis = math.acos(max(-1.0, min(1.0, c_cam[2] / distance)))
+            if off_axis - math.asin(min(1.0, body.bounding_radius_m / distance)) < half_diagonal:
+                return True
+        return False
 
     def _render_margin(self, frame: dict, width: int, height: int, margin_px: int) -> np.ndarray:
         """(n, 3) float32 radiance of the pixels of a ``margin_px`` wide ring around the
@@ -233,6 +264,14 @@ class Renderer:
                 lane_sum = dr.zeros(mi.Color3f, n_pix * count)
             geo = self._pass_primary(frame, pixel, pass_index)
             geo["lane"] = pixel if count == 1 else lanes
+            if frame["background"]:
+                # Rays that miss the target see the Earth or the Moon behind it.
+                sky, _ = self._body_light.radiance(
+                    frame["bodies"], frame["camera_body"], geo["d_body"], ~geo["hit"]
+                )
+                dr.scatter_add(
+                    lane_sum, sky, geo["lane"], ~geo["hit"], mode=dr.ReduceMode.NoConflicts
+                )
             if centre_labels:
                 labels = self._labels(frame, geo, idx)
             if compact:
@@ -284,7 +323,8 @@ class Renderer:
         coeffs = np.zeros((n, 3))
         if self.settings.environment != "off" or self.settings.sun == "sh":
             m = min(n, light.sh_radiance_w_m2_sr.shape[0])
-            if self.settings.environment != "off":
+            bodies_traced = self.settings.environment == "sampled" and light.bodies
+            if self.settings.environment != "off" and not bodies_traced:
                 coeffs[:m] = light.sh_radiance_w_m2_sr[:m]
             if self.settings.sun == "sh":
                 sun = sh.delta_coeffs(light.sun_direction_body, self._l_max)
@@ -366,16 +406,24 @@ class Renderer:
         return (1.0 / math.pi) * dr.maximum(total, 0.0)
 
     def _labels(self, frame: dict, geo: dict, pixel):
-        """Depth along +z (m), part id (index + 1, 0 background) and camera-frame normals
-        (flat Float, three per pixel) of the rays ``geo`` of pixels ``pixel``."""
+        """Depth along +z (m), part id (index + 1, 0 background), camera-frame normals
+        (flat Float, three per pixel) and, with bodies in view, the background (a 1-tuple
+        of the body id, 0 space, 1 Earth, 2 Moon; else empty) of the rays ``geo`` of
+        pixels ``pixel``."""
         mi, dr = self._mi, self._dr
         hit = geo["hit"]
+        background: tuple = ()
+        if frame["background"]:
+            _, body = self._body_light.radiance(
+                frame["bodies"], frame["camera_body"], geo["d_body"], ~hit
+            )
+            background = (dr.select(hit, 0, body),)
         depth = dr.select(hit, geo["t"] * geo["d_cam"].z, 0.0)
         part_id = dr.select(hit, geo["part"] + 1, 0)
         n_cam = dr.select(hit, frame["R_cam_from_body"] @ geo["n"], 0.0)
         normals = dr.empty(mi.Float, 3 * dr.width(pixel))
         dr.scatter(normals, n_cam, pixel)  # one packet write of the three components
-        return depth, part_id, normals
+        return depth, part_id, normals, background
 
     def _streams(self, frame: dict, idx, pass_index, segment: int):
         """Random numbers of the paths of pixel ``idx`` in pass ``pass_index`` (UInt32):
@@ -491,6 +539,33 @@ class Renderer:
             # ray finds no surface after all ends there.
             active = found["hit"]
 
+    def _body_light_sample(
+        self, frame, surface, params, shading, origin, wo_local, active, depth: int, rng, ld
+    ):
+        """Light from the Earth and the Moon by one direction sampled in a body's cone,
+        shadowed by the target, weighted against BRDF sampling (power heuristic)."""
+        mi, dr = self._mi, self._dr
+        bodies = frame["bodies"]
+        base = self._light_dims + 3 * depth
+        wi, pdf_light = self._body_light.sample(
+            bodies, origin, ld(base), ld(base + 1), ld(base + 2)
+        )
+        wi_local = shading.to_local(wi)
+        ok = active & (wi_local.z > 0.0) & (pdf_light > 0.0)
+        sky, _ = self._body_light.radiance(bodies, origin, wi, ok)
+        ok &= dr.max(sky) > 0.0
+        ok &= self._geometry.visible(origin, wi, ok, rng(self._light_segment(depth)))
+        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+        pdf_brdf = surface.pdf(params, wi_local, wo_local)
+        mis = dr.square(pdf_light) / dr.maximum(dr.square(pdf_light) + dr.square(pdf_brdf), 1e-30)
+        weight = wi_local.z * mis / dr.maximum(pdf_light, 1e-30)
+        return dr.select(ok, (f_diffuse + f_specular) * sky * weight, mi.Color3f(0.0))
+
+    @staticmethod
+    def _light_segment(depth: int) -> int:
+        """Random-stream segment of the body-light shadow ray at path vertex ``depth``."""
+        return 1000 + depth
+
     @staticmethod
     def _shading_segment(depth: int) -> int:
         """Random-stream segment of the shadow rays at path vertex ``depth``."""
@@ -534,6 +609,10 @@ class Renderer:
             diffuse_env = dr.gather(type(table), table, vertex["side"], active)
             kd = surface.diffuse_coefficient(params, wo_local)
             radiance += dr.select(active, kd * diffuse_env, 0.0)
+        if frame["body_light"]:
+            radiance += self._body_light_sample(
+                frame, surface, params, shading, origin, wo_local, active, depth, rng, ld
+            )
         last = depth == s.bounces
         if last and not env_on:
             return throughput * radiance, None
@@ -558,7 +637,17 @@ class Renderer:
                 # The diffuse part came from the SH convolution above: only the specular
                 # part is taken from the sampled ray.
                 env_weight = f_specular * cos_over_pdf
-            radiance += dr.select(escaped, env_weight * self._environment_radiance(frame, wi), 0.0)
+            if not frame["env_zero"]:
+                sky = self._environment_radiance(frame, wi)
+                radiance += dr.select(escaped, env_weight * sky, 0.0)
+            if frame["body_light"]:
+                # The BRDF sample's share of the bodies' light (multiple importance
+                # sampling with the body-light sample, power heuristic).
+                bodies = frame["bodies"]
+                sky, _ = self._body_light.radiance(bodies, origin, wi, escaped)
+                pdf_light = self._body_light.light_pdf(bodies, origin, wi)
+                mis = dr.square(pdf) / dr.maximum(dr.square(pdf) + dr.square(pdf_light), 1e-30)
+                radiance += dr.select(escaped, env_weight * sky * mis, 0.0)
         radiance = throughput * radiance
         if last:
             return radiance, None

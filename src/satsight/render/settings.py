@@ -14,12 +14,12 @@ from satsight.errors import SatsightError
 BrdfModel = Literal["ggx", "improved_phong", "phong"]
 GgxMasking = Literal["schlick", "smith"]
 SunRepresentation = Literal["delta", "sh"]
-EnvironmentMode = Literal["sampled", "unshadowed", "off"]
+EnvironmentMode = Literal["sampled", "sh", "unshadowed", "off"]
 
 BRDF_MODELS: tuple[str, ...] = ("ggx", "improved_phong", "phong")
 GGX_MASKINGS: tuple[str, ...] = ("schlick", "smith")
 SUN_REPRESENTATIONS: tuple[str, ...] = ("delta", "sh")
-ENVIRONMENT_MODES: tuple[str, ...] = ("sampled", "unshadowed", "off")
+ENVIRONMENT_MODES: tuple[str, ...] = ("sampled", "sh", "unshadowed", "off")
 SH_ORDER_RANGE = (2, 8)
 MAX_BOUNCES = 16
 MAX_TRANSPARENT_LAYERS = 8
@@ -35,9 +35,14 @@ class RenderSettings:
     sh_order: highest SH degree L of the environment light field (paper: 4).
     sun: ``"delta"`` (exact collimated source with a shadow ray) or ``"sh"`` (the Sun's
     delta expanded into SH of order ``sh_order`` and added to the environment, as the
-    paper's Eq. 10). environment: ``"sampled"`` (environment light by BRDF-sampled rays,
-    so the target shadows itself), ``"unshadowed"`` (diffuse part from the SH irradiance,
-    no self-shadowing; specular part sampled) or ``"off"``.
+    paper's Eq. 10). environment: ``"sampled"`` (the light field's bodies, the Earth and
+    the Moon, traced as sunlit ellipsoids by BRDF-sampled and body-sampled rays combined
+    by multiple importance sampling: exact earthshine, shadowed by the target itself; a
+    light field without bodies falls back to its SH expansion), ``"sh"`` (the paper's
+    method: BRDF-sampled rays pick up the SH expansion of order ``sh_order``, clamped at
+    0, shadowed by the target), ``"unshadowed"`` (diffuse part from the SH irradiance,
+    no self-shadowing; specular part sampled) or ``"off"``. Every mode shows the bodies
+    behind the target.
     bounces: inter-reflections between parts after the first surface (0 = direct light
     only). samples_per_pixel: light paths per pixel and sub-pixel position.
     supersampling: s gives s x s stratified sub-pixel positions; labels always come from

@@ -1,0 +1,200 @@
+"""The Earth and the Moon in the renderer: rays traced to sunlit Lambertian ellipsoids.
+
+Two body slots (0: the Earth, 1: the Moon) are per-frame opaque values, so frames with or
+without a body reuse one compiled kernel (an absent body has zero irradiance and is never
+sampled). For each body:
+
+* ``hit``: the ray's first point on the ellipsoid, solved in the space where it is the
+  unit sphere from the ray's closest approach to the centre (no cancellation for grazing
+  rays; float32 places the limb to ~1 m at the Earth);
+* radiance there: rho E max(n . s, 0) / pi with the ellipsoid's normal n (its latitude is
+  the geodetic one) and rho the uniform albedo or the albedo map (bilinear texture);
+* light sampling: directions uniform in the cone of the body's bounding sphere seen from the
+  shading point, pdf 1 / (2 pi (1 - cos alpha)), with 1 - cos alpha = sin^2 alpha /
+  (1 + cos alpha) so that the Moon's 0.26 deg cone keeps its precision.
+
+See ``satsight.lighting.scene_bodies`` for the model and its numpy twin.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from satsight.lighting.scene_bodies import BODY_IDS, SceneBody
+
+SLOTS = ("earth", "moon")
+_TWO_PI = 2.0 * math.pi
+
+
+class BodyLight:
+    """Per-frame body values for the kernels and the Dr.Jit functions that use them.
+
+    origin_body_m: the render space's origin in the target's body frame (the renderer's
+    mesh centre), subtracted from the bodies' centres.
+    """
+
+    def __init__(self, origin_body_m: np.ndarray) -> None:
+        import drjit as dr
+        import mitsuba as mi
+
+        self._mi, self._dr = mi, dr
+        self._origin_body_m = np.asarray(origin_body_m, dtype=np.float64)
+        self._textures: dict[int, object] = {}
+
+    # --- host side -----------------------------------------------------------------------
+    def _texture(self, body: SceneBody | None):
+        """The Earth slot's albedo texture: the map, or a 2 x 2 texture of the uniform
+        albedo (cached per map / albedo, so that frames reuse one texture object)."""
+        mi, dr = self._mi, self._dr
+        if body is not None and body.albedo_map is not None:
+            key, data = id(body.albedo_map), body.albedo_map.albedo_rgb
+        else:
+            albedo = np.zeros(3) if body is None else body.albedo_rgb
+            key = hash(tuple(np.round(albedo, 9)))
+            data = np.broadcast_to(albedo.astype(np.float32), (2, 2, 3))
+        if key not in self._textures:
+            if len(self._textures) > 8:
+                self._textures.clear()
+            self._textures[key] = mi.Texture2f(
+                mi.TensorXf(np.ascontiguousarray(data, dtype=np.float32)),
+                use_accel=False,
+                filter_mode=dr.FilterMode.Linear,
+                wrap_mode=dr.WrapMode.Repeat,
+            )
+            if body is not None and body.albedo_map is not None:
+                self._textures[key]._satsight_map = body.albedo_map  # keep the id alive
+        return self._textures[key], np.asarray(data.shape[:2])
+
+    def frame_values(self, bodies: tuple[SceneBody, ...]) -> dict:
+        """Opaque per-frame values of the two slots from the light field's bodies."""
+        mi, dr = self._mi, self._dr
+        by_name = {b.name: b for b in bodies}
+        values: dict = {"slots": []}
+        for name in SLOTS:
+            body = by_name.get(name)
+            if body is None:
+                center, axes, R, e = np.array([0.0, 0.0, 1e12]), np.ones(3), np.eye(3), 0.0
+                albedo, sun = np.zeros(3), np.array([0.0, 0.0, 1.0])
+            else:
+                center = body.center_body_m - self._origin_body_m
+                axes, R = body.semi_axes_m, body.R_body_from_fixed.T
+                e, albedo, sun = body.sun_irradiance_w_m2, body.albedo_rgb, body.sun_direction_body
+            slot = {
+                "center": mi.Point3f(*(float(c) for c in center)),
+                "R_fixed_from_body": mi.Matrix3f(R.astype(np.float32)),
+                "R_body_from_fixed": mi.Matrix3f(R.T.astype(np.float32)),
+                "inv_axes": mi.Vector3f(*(float(1.0 / a) for a in axes)),
+                "radius": mi.Float(float(axes.max())),
+                "e_over_pi": mi.Float(float(e / math.pi)),
+                "albedo": mi.Color3f(*(float(a) for a in albedo)),
+                "sun": mi.Vector3f(*(float(c) for c in sun)),
+            }
+            dr.make_opaque(*slot.values())
+            values["slots"].append(slot)
+        earth = by_name.get("earth")
+        texture, shape = self._texture(earth)
+        values["texture"] = texture
+        rows = float(shape[0])
+        values["v_range"] = (0.5 / rows, 1.0 - 0.5 / rows)
+        # Light-sampling choice: the Earth's share of the bodies' power, roughly
+        # E * albedo * solid angle (only a choice of samples; any value gives the right mean).
+        weights = []
+        for name in SLOTS:
+            body = by_name.get(name)
+            if body is None:
+                weights.append(0.0)
+                continue
+            distance = np.linalg.norm(body.center_body_m - self._origin_body_m)
+            sin2 = min(1.0, (body.bounding_radius_m / distance) ** 2)
+            weights.append(body.sun_irradiance_w_m2 * (0.05 + body.albedo_rgb.mean()) * sin2)
+        total = sum(weights)
+        p_earth = 0.5 if total == 0.0 else weights[0] / total
+        values["p_earth"] = mi.Float(float(p_earth))
+        dr.make_opaque(values["p_earth"])
+        values["any"] = total > 0.0
+        return values
+
+    # --- kernels ---------------------------------------------------------------------------
+    def _slot_hit(self, slot: dict, origin, direction, active):
+        """(hit, t, unit normal in the fixed frame) of a ray on one slot's ellipsoid."""
+        mi, dr = self._mi, self._dr
+        R, inv = slot["R_fixed_from_body"], slot["inv_axes"]
+        o = (R @ (origin - slot["center"])) * inv
+        d = (R @ direction) * inv
+        a = dr.squared_norm(d)
+        t_c = -dr.dot(d, o) / a
+        q = dr.fma(d, t_c, o)
+        h2 = dr.squared_norm(q)
+        t = t_c - dr.safe_sqrt((1.0 - h2) / a)
+        hit = active & (h2 < 1.0) & (t > 0.0)
+        n_fixed = dr.normalize(dr.fma(d, t, o) * inv)
+        return hit, t, mi.Vector3f(n_fixed)
+
+    def _slot_radiance(self, values: dict, k: int, n_fixed, hit):
+        """Radiance of slot ``k``'s surface with fixed-frame normal n_fixed."""
+        mi, dr = self._mi, self._dr
+        slot = values["slots"][k]
+        n_body = slot["R_body_from_fixed"] @ n_fixed
+        cos_sun = dr.maximum(dr.dot(n_body, slot["sun"]), 0.0)
+        if k == 0:
+            lat = dr.asin(dr.clip(n_fixed.z, -1.0, 1.0))
+            lon = dr.atan2(n_fixed.y, n_fixed.x)
+            lo, hi = values["v_range"]
+            u = lon * (1.0 / _TWO_PI) + 0.5
+            v = dr.clip(0.5 - lat * (1.0 / math.pi), lo, hi)
+            albedo = mi.Color3f(*values["texture"].eval(mi.Point2f(u, v), active=hit))
+        else:
+            albedo = slot["albedo"]
+        return dr.select(hit, albedo * (slot["e_over_pi"] * cos_sun), 0.0)
+
+    def radiance(self, values: dict, origin, direction, active):
+        """(radiance Color3f, body id UInt32: 0 none, 1 Earth, 2 Moon) along rays from
+        ``origin`` (render space) in unit ``direction``: the nearest body's surface."""
+        mi, dr = self._mi, self._dr
+        hit0, t0, n0 = self._slot_hit(values["slots"][0], origin, direction, active)
+        hit1, t1, n1 = self._slot_hit(values["slots"][1], origin, direction, active)
+        hit1 &= ~hit0 | (t1 < t0)
+        hit0 &= ~hit1
+        value = self._slot_radiance(values, 0, n0, hit0) + self._slot_radiance(values, 1, n1, hit1)
+        body = dr.select(
+            hit0, mi.UInt32(BODY_IDS["earth"]), dr.select(hit1, mi.UInt32(BODY_IDS["moon"]), 0)
+        )
+        return value, body
+
+    def _cone(self, slot: dict, p):
+        """Axis (unit), cos alpha and 1 - cos alpha of a slot's bounding cone from p."""
+        dr = self._dr
+        to_center = slot["center"] - p
+        distance2 = dr.squared_norm(to_center)
+        sin2 = dr.minimum(dr.square(slot["radius"]) / distance2, 1.0)
+        cos_max = dr.safe_sqrt(1.0 - sin2)
+        return to_center * dr.rsqrt(distance2), cos_max, sin2 / (1.0 + cos_max)
+
+    def light_pdf(self, values: dict, p, direction):
+        """Solid-angle density of ``sample`` choosing ``direction`` from p."""
+        dr = self._dr
+        total = 0.0
+        for k, share in enumerate((values["p_earth"], 1.0 - values["p_earth"])):
+            axis, cos_max, one_minus = self._cone(values["slots"][k], p)
+            inside = dr.dot(direction, axis) >= cos_max
+            density = dr.select(inside & (one_minus > 0.0), 1.0 / (_TWO_PI * one_minus), 0.0)
+            total = total + share * density
+        return total
+
+    def sample(self, values: dict, p, u_choice, u1, u2):
+        """A direction towards one body (chosen with probability ``p_earth`` for the
+        Earth), uniform in its bounding cone seen from p, and its density ``light_pdf``."""
+        mi, dr = self._mi, self._dr
+        earth = u_choice < values["p_earth"]
+        cones = [self._cone(slot, p) for slot in values["slots"]]
+        axis = dr.select(earth, cones[0][0], cones[1][0])
+        one_minus = dr.select(earth, cones[0][2], cones[1][2])
+        one_minus_cos = u1 * one_minus
+        cos_t = 1.0 - one_minus_cos
+        sin_t = dr.safe_sqrt(one_minus_cos * (2.0 - one_minus_cos))
+        sin_p, cos_p = dr.sincos(_TWO_PI * u2)
+        frame = mi.Frame3f(axis)
+        direction = frame.to_world(mi.Vector3f(sin_t * cos_p, sin_t * sin_p, cos_t))
+        return direction, self.light_pdf(values, p, direction)
