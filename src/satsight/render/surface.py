@@ -118,6 +118,15 @@ class SurfaceModel:
         """A light direction wi for viewer direction wo, and its pdf (solid angle)."""
         return self._functions[1](wo, u_lobe, u2, params)
 
+    def pdf(self, params, wi, wo):
+        """Solid-angle density with which ``sample`` picks wi for viewer direction wo."""
+        function = {
+            "ggx": ggx.ggx_pdf,
+            "phong": phong.phong_pdf,
+            "improved_phong": phong.improved_phong_pdf,
+        }[self.model]
+        return function(wi, wo, params)
+
     def diffuse_coefficient(self, params, wo):
         """kd_eq (Color3f) for viewer direction wo: the diffuse part is kd_eq / pi times the
         part's zonal kernel of theta_i (see ``diffuse_band_factors``) over cos(theta_i)."""
