@@ -57,15 +57,15 @@ class BodyLight:
         if key not in self._textures:
             if len(self._textures) > 8:
                 self._textures.clear()
-            self._textures[key] = mi.Texture2f(
+            texture = mi.Texture2f(
                 mi.TensorXf(np.ascontiguousarray(data, dtype=np.float32)),
                 use_accel=False,
                 filter_mode=dr.FilterMode.Linear,
                 wrap_mode=dr.WrapMode.Repeat,
             )
-            if body is not None and body.albedo_map is not None:
-                self._textures[key]._satsight_map = body.albedo_map  # keep the id alive
-        return self._textures[key], np.asarray(data.shape[:2])
+            # The map is kept with its texture, so that its id is not reused while cached.
+            self._textures[key] = (texture, None if body is None else body.albedo_map)
+        return self._textures[key][0], np.asarray(data.shape[:2])
 
     def frame_values(self, bodies: tuple[SceneBody, ...]) -> dict:
         """Opaque per-frame values of the two slots from the light field's bodies."""

@@ -1,0 +1,239 @@
+"""The Earth's surface albedo map: land, ocean, polar ice and a seeded cloud field.
+
+Albedo per 0.1 deg cell (1800 x 3600, ``AlbedoMap`` convention):
+
+    rho = (1 - c) [f rho_land + (1 - f) rho_ocean] + c rho_cloud
+
+* f, the land fraction of the cell: the mean of the 1 km GLOBE land/sea mask (NOAA
+  National Geophysical Data Center, GLOBE v1.0, 1999) as shipped by the
+  ``global-land-mask`` package (MIT licence), over the cell's 12 x 12 samples. Land south
+  of 60 deg S (Antarctica) takes the ice albedo.
+* c, the cloud cover of the cell: a seeded fractal field on the unit sphere (value noise
+  on 3-D lattices, 7 octaves from 6 cells across the Earth, amplitude 0.65 per octave), passed through a smooth
+  step whose threshold gives the mean cover ``cloud_fraction`` (default 0.67, the MODIS
+  global cloud fraction: King et al. 2013, IEEE TGRS 51, 3826). Cloud systems are thereby
+  spatially coherent at 100-3000 km scales, but they follow no real weather and no
+  climatological latitude pattern: a stand-in, not a forecast.
+* Albedos (broadband, Lambertian, the same in every channel): ocean 0.06 (Payne 1972,
+  J. Atmos. Sci. 29, 959), land 0.25 (between vegetated surfaces ~0.15 and deserts ~0.35),
+  ice 0.80 (fresh snow 0.8-0.9: Warren 1982, Rev. Geophys. 20, 67). The cloud albedo,
+  unless given, is calibrated so that the map's area mean is the Earth's Bond albedo 0.30
+  (Stephens et al. 2015, Rev. Geophys. 53, 141); with the defaults it comes out near 0.39.
+
+The map is built once (about 10 s and 1 GB while the 1 km mask is read) and cached as a
+compressed .npz under ``$XDG_CACHE_HOME/satsight`` (or ``~/.cache/satsight``); the cache
+key holds every parameter.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from satsight.errors import SatsightError
+from satsight.lighting.scene_bodies import AlbedoMap
+
+MAP_ROWS, MAP_COLS = 1800, 3600
+OCEAN_ALBEDO = 0.06
+LAND_ALBEDO = 0.25
+ICE_ALBEDO = 0.80
+CLOUD_FRACTION = 0.67
+BOND_ALBEDO = 0.30
+_ICE_LATITUDE_DEG = -60.0
+_OCTAVES = 7
+_PERSISTENCE = 0.65
+_CACHE_VERSION = 2
+
+
+@dataclass(frozen=True)
+class EarthSurfaceModel:
+    """Parameters of the albedo map (see the module docstring)."""
+
+    land_albedo: float = LAND_ALBEDO
+    ocean_albedo: float = OCEAN_ALBEDO
+    ice_albedo: float = ICE_ALBEDO
+    cloud_fraction: float = CLOUD_FRACTION
+    cloud_albedo: float | None = None
+    cloud_seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("land_albedo", "ocean_albedo", "ice_albedo", "cloud_fraction"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise SatsightError(f"earth surface: {name} must be in [0, 1], got {value}")
+        if self.cloud_albedo is not None and not 0.0 <= self.cloud_albedo <= 1.0:
+            raise SatsightError("earth surface: cloud_albedo must be in [0, 1]")
+
+
+def _cache_dir() -> Path:
+    root = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(root) / "satsight"
+
+
+def land_fraction() -> np.ndarray:
+    """(1800, 3600) float32 land fraction per 0.1 deg cell from the 1 km GLOBE mask."""
+    try:
+        from importlib.resources import files
+
+        path = files("global_land_mask") / "globe_combined_mask_compressed.npz"
+    except ModuleNotFoundError as error:
+        raise SatsightError(
+            "the Earth's albedo map needs the 'global-land-mask' package "
+            "(pip install global-land-mask), or set earth.surface: uniform"
+        ) from error
+    with np.load(str(path)) as data:
+        ocean = data["mask"]  # True over the ocean, rows from +90 deg, columns from -180 deg
+    rows, cols = ocean.shape
+    fy, fx = rows // MAP_ROWS, cols // MAP_COLS
+    ocean_fraction = np.empty((MAP_ROWS, MAP_COLS), dtype=np.float32)
+    for start in range(0, MAP_ROWS, 100):  # in bands, to keep the float copy small
+        band = ocean[start * fy : (start + 100) * fy]
+        ocean_fraction[start : start + 100] = band.reshape(-1, fy, MAP_COLS, fx).mean(
+            axis=(1, 3), dtype=np.float32
+        )
+    return 1.0 - ocean_fraction
+
+
+def _cell_directions() -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors (rows, cols, 3) of the cell centres and their latitudes (deg)."""
+    lat = 90.0 - (np.arange(MAP_ROWS) + 0.5) * 180.0 / MAP_ROWS
+    lon = -180.0 + (np.arange(MAP_COLS) + 0.5) * 360.0 / MAP_COLS
+    la, lo = np.radians(lat)[:, None], np.radians(lon)[None, :]
+    xyz = np.stack(
+        np.broadcast_arrays(np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)),
+        axis=-1,
+    ).astype(np.float32)
+    return xyz, lat
+
+
+def cloud_noise(seed: int) -> np.ndarray:
+    """(1800, 3600) float32 fractal value noise on the unit sphere, zero mean, seeded."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x434C4F55]))
+    xyz, _ = _cell_directions()
+    total = np.zeros((MAP_ROWS, MAP_COLS), dtype=np.float32)
+    for octave in range(_OCTAVES):
+        cells = 6 * 2**octave  # lattice cells across the sphere's diameter
+        lattice = rng.standard_normal((cells + 2,) * 3).astype(np.float32)
+        pos = (xyz + 1.0) * (0.5 * cells)
+        i0 = np.minimum(np.floor(pos).astype(np.int32), cells)
+        f = pos - i0
+        f = f * f * (3.0 - 2.0 * f)  # smooth interpolation weights
+        value = np.zeros_like(total)
+        for corner in range(8):
+            dx, dy, dz = corner & 1, (corner >> 1) & 1, (corner >> 2) & 1
+            w = (
+                (f[..., 0] if dx else 1 - f[..., 0])
+                * (f[..., 1] if dy else 1 - f[..., 1])
+                * (f[..., 2] if dz else 1 - f[..., 2])
+            )
+            value += w * lattice[i0[..., 0] + dx, i0[..., 1] + dy, i0[..., 2] + dz]
+        total += value * _PERSISTENCE**octave
+    return total - total.mean()
+
+
+def cloud_cover(noise: np.ndarray, fraction: float, weights: np.ndarray) -> np.ndarray:
+    """Cloud cover in [0, 1] from the noise: a linear ramp of width 0.3 noise std around a
+    threshold chosen (bisection) so that the area-weighted mean cover is ``fraction``."""
+    width = 0.3 * float(noise.std())
+
+    def cover(threshold: float) -> np.ndarray:
+        return np.clip((noise - threshold) / width + 0.5, 0.0, 1.0)
+
+    lo, hi = float(noise.min()) - width, float(noise.max()) + width
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if np.average(cover(mid), weights=weights) > fraction:
+            lo = mid
+        else:
+            hi = mid
+    return cover(0.5 * (lo + hi)).astype(np.float32)
+
+
+def build_albedo_map(model: EarthSurfaceModel) -> AlbedoMap:
+    """The albedo map of ``model`` (uncached; see ``earth_albedo_map``)."""
+    land = land_fraction()
+    _, lat = _cell_directions()
+    area = np.broadcast_to(np.cos(np.radians(lat))[:, None], land.shape)
+    land_albedo = np.where(lat[:, None] < _ICE_LATITUDE_DEG, model.ice_albedo, model.land_albedo)
+    surface = land * land_albedo + (1.0 - land) * model.ocean_albedo
+    cover = cloud_cover(cloud_noise(model.cloud_seed), model.cloud_fraction, area)
+    cloud_albedo = model.cloud_albedo
+    if cloud_albedo is None:
+        clear = float(np.average((1.0 - cover) * surface, weights=area))
+        mean_cover = float(np.average(cover, weights=area))
+        cloud_albedo = (BOND_ALBEDO - clear) / max(mean_cover, 1e-6)
+        if not 0.0 <= cloud_albedo <= 1.0:
+            raise SatsightError(
+                f"earth surface: no cloud albedo in [0, 1] brings the mean albedo to "
+                f"{BOND_ALBEDO} with these values (it would be {cloud_albedo:.3f}); give "
+                "cloud_albedo"
+            )
+    albedo = (1.0 - cover) * surface + cover * cloud_albedo
+    mean = float(np.average(albedo, weights=area))
+    description = (
+        "GLOBE 1 km land/sea mask (global-land-mask package) at 0.1 deg; "
+        + json.dumps({**asdict(model), "cloud_albedo": round(cloud_albedo, 5)})
+        + f"; area-mean albedo {mean:.4f}"
+    )
+    rgb = np.repeat(albedo.astype(np.float32)[..., None], 3, axis=2)
+    return AlbedoMap(rgb, description)
+
+
+_MEMORY: dict[str, AlbedoMap] = {}
+
+
+def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
+    """The albedo map of ``model`` (defaults if None), from memory, the disk cache, or
+    built and cached (written atomically, so concurrent workers are safe)."""
+    model = model or EarthSurfaceModel()
+    key = hashlib.sha256(
+        json.dumps({**asdict(model), "v": _CACHE_VERSION}, sort_keys=True).encode()
+    ).hexdigest()[:16]
+    if key in _MEMORY:
+        return _MEMORY[key]
+    path = _cache_dir() / f"earth_albedo_{key}.npz"
+    albedo_map = None
+    if path.exists():
+        try:
+            with np.load(path) as data:
+                grey = data["albedo"].astype(np.float32) / 65535.0
+                albedo_map = AlbedoMap(np.repeat(grey[..., None], 3, axis=2), str(data["about"]))
+        except (OSError, ValueError, KeyError):
+            albedo_map = None  # a damaged cache file is rebuilt
+    if albedo_map is None:
+        albedo_map = build_albedo_map(model)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        grey = np.round(albedo_map.albedo_rgb[..., 0] * 65535.0).astype(np.uint16)
+        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
+            np.savez_compressed(f, albedo=grey, about=np.array(albedo_map.description))
+        os.replace(f.name, path)
+        # What is kept is the 16-bit value, so a fresh build and a cache read agree.
+        albedo_map = AlbedoMap(
+            np.repeat((grey.astype(np.float32) / 65535.0)[..., None], 3, axis=2),
+            albedo_map.description,
+        )
+    _MEMORY[key] = albedo_map
+    return albedo_map
+
+
+def map_mean_albedo(albedo_map: AlbedoMap) -> float:
+    """Area-weighted mean albedo of a map (green channel)."""
+    rows = albedo_map.albedo_rgb.shape[0]
+    lat = 90.0 - (np.arange(rows) + 0.5) * 180.0 / rows
+    weights = np.cos(np.radians(lat))[:, None] * np.ones(albedo_map.albedo_rgb.shape[1])
+    return float(np.average(albedo_map.albedo_rgb[..., 1], weights=weights))
+
+
+__all__ = [
+    "EarthSurfaceModel",
+    "build_albedo_map",
+    "earth_albedo_map",
+    "land_fraction",
+    "map_mean_albedo",
+]
