@@ -24,6 +24,7 @@ from satsight.errors import SatsightError
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.bodies import MOON_MEAN_RADIUS_M, environment_light_field
 from satsight.lighting.light_field import LightField
+from satsight.lighting.scene_bodies import earth_body, moon_body
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage, SunLight
@@ -59,7 +60,9 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
     The Sun's in-band irradiance is the scenario's value at 1 AU scaled by the inverse square
     of the frame's Sun distance; the Earth and the Moon are lit by all of it, the target by
     its ``sunlit_fraction`` (partly or wholly in the Earth's shadow). Earthshine and moonshine
-    are included when the scenario has ``earth`` / ``moon`` sections.
+    are included when the scenario has ``earth`` / ``moon`` sections: as SH coefficients and
+    as bodies in the scene (``SceneBody``; the Earth's fixed frame is the ITRS at the frame's
+    epoch, or the target's body frame when the scenario has no epoch).
     """
     R_body_from_cam = track.cam_from_body(index).R_a_from_b.T
     sun_config = scenario.sun
@@ -75,21 +78,57 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
         return R_body_from_cam @ (direction_cam * distance_m)
 
     earth, moon = scenario.earth, scenario.moon
+    earth_center = (
+        None
+        if earth is None
+        else center_body(track.earth_from_target_cam[index], track.earth_distance_m[index])
+    )
+    moon_center = (
+        None
+        if moon is None
+        else center_body(track.moon_from_target_cam[index], track.moon_distance_m[index])
+    )
     light = environment_light_field(
         sun_body,
         irradiance,
-        earth_center_from_target_m=None
-        if earth is None
-        else center_body(track.earth_from_target_cam[index], track.earth_distance_m[index]),
+        earth_center_from_target_m=earth_center,
         earth_albedo=0.30 if earth is None else earth.albedo,
-        moon_center_from_target_m=None
-        if moon is None
-        else center_body(track.moon_from_target_cam[index], track.moon_distance_m[index]),
+        moon_center_from_target_m=moon_center,
         moon_albedo=0.12 if moon is None else moon.albedo,
         l_max=scenario.render.sh_order,
         sun_irradiance_at_target_w_m2=at_target,
     )
+    bodies = []
+    if earth is not None:
+        bodies.append(
+            earth_body(
+                earth_center,
+                R_body_from_cam @ _R_cam_from_earth_fixed(track, index),
+                earth.albedo,
+                sun_body,
+                irradiance,
+                albedo_map=earth.albedo_map(),
+                shape=earth.shape,
+            )
+        )
+    if moon is not None:
+        bodies.append(moon_body(moon_center, MOON_MEAN_RADIUS_M, moon.albedo, sun_body, irradiance))
+    light = dataclasses.replace(light, bodies=tuple(bodies))
     return light, SunLight(sun_body, at_target)
+
+
+def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:
+    """Rotation from the Earth's fixed frame (ITRS at the frame's epoch, skyfield's
+    precession-nutation and Earth rotation) to the camera frame; without an inertial
+    attitude (views given in the body frame) the target's body frame stands in for it."""
+    if not (track.has_sky and track.epoch_utc[index]):
+        return track.cam_from_body(index).R_a_from_b
+    from skyfield.framelib import itrs
+
+    from satsight.ephemeris.time import parse_epoch_utc
+
+    R_itrs_from_gcrs = itrs.rotation_at(parse_epoch_utc(track.epoch_utc[index]))
+    return track.R_cam_from_gcrs(index) @ R_itrs_from_gcrs.T
 
 
 def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:

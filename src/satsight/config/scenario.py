@@ -171,12 +171,30 @@ class SunConfig(_Strict):
 
 class EarthConfig(_Strict):
     """The Earth seen from the target: direction of its centre (body frame), altitude of
-    the target above the mean sphere, and a Lambertian albedo (scalar or per channel)."""
+    the target above the mean sphere, and a Lambertian albedo (scalar or per channel; the
+    SH light field's, and the body's with ``surface: uniform``), its surface (albedo map or
+    uniform) and shape (WGS-84 ellipsoid or sphere) as a body in the scene."""
 
     azimuth_deg: float = 0.0
     elevation_deg: float = Field(default=-90.0, ge=-90, le=90)
     altitude_km: float = Field(default=500.0, gt=0, le=1e6)
     albedo: float | tuple[float, float, float] = 0.30
+    # The Earth as a body in the scene (satsight.lighting.scene_bodies / earth_surface):
+    # "map" = land, ocean, ice and seeded clouds (mean 0.30); "uniform" = ``albedo``.
+    surface: Literal["map", "uniform"] = "map"
+    shape: Literal["wgs84", "sphere"] = "wgs84"
+    cloud_fraction: float = Field(default=0.67, ge=0.0, le=1.0)
+    cloud_seed: int = Field(default=0, ge=0)
+
+    def albedo_map(self):
+        """The surface albedo map, or None for a uniform Earth."""
+        if self.surface == "uniform":
+            return None
+        from satsight.lighting.earth_surface import EarthSurfaceModel, earth_albedo_map
+
+        return earth_albedo_map(
+            EarthSurfaceModel(cloud_fraction=self.cloud_fraction, cloud_seed=self.cloud_seed)
+        )
 
     def center_from_target_m(self) -> np.ndarray:
         distance_m = EARTH_RADIUS_M + self.altitude_km * 1e3
