@@ -9,11 +9,11 @@ Albedo per 0.1 deg cell (1800 x 3600, ``AlbedoMap`` convention):
   ``global-land-mask`` package (MIT licence), over the cell's 12 x 12 samples. Land south
   of 60 deg S (Antarctica) takes the ice albedo.
 * c, the cloud cover of the cell: a seeded fractal field on the unit sphere (value noise
-  on 3-D lattices, 7 octaves from 6 cells across the Earth, amplitude 0.65 per octave), passed through a smooth
-  step whose threshold gives the mean cover ``cloud_fraction`` (default 0.67, the MODIS
-  global cloud fraction: King et al. 2013, IEEE TGRS 51, 3826). Cloud systems are thereby
-  spatially coherent at 100-3000 km scales, but they follow no real weather and no
-  climatological latitude pattern: a stand-in, not a forecast.
+  on 3-D lattices, 7 octaves from 6 cells across the Earth, amplitude 0.65 per octave),
+  passed through a linear ramp whose threshold gives the mean cover ``cloud_fraction``
+  (default 0.67, the MODIS global cloud fraction: King et al. 2013, IEEE TGRS 51, 3826).
+  Cloud systems are thereby spatially coherent at 100-3000 km scales, but they follow no
+  real weather and no climatological latitude pattern: a stand-in, not a forecast.
 * Albedos (broadband, Lambertian, the same in every channel): ocean 0.06 (Payne 1972,
   J. Atmos. Sci. 29, 959), land 0.25 (between vegetated surfaces ~0.15 and deserts ~0.35),
   ice 0.80 (fresh snow 0.8-0.9: Warren 1982, Rev. Geophys. 20, 67). The cloud albedo,
