@@ -6,17 +6,19 @@ The image is (height, width) float32 focal-plane irradiance: the left half is a 
 at about 0.4 W m^-2 with a deterministic texture (smooth panels times a +-20 % pixel-scale
 pattern), the right half is empty space (0). Timed cases:
 
-* ``apply_optics``: the default high-resolution PSF (``psf_kernel`` of the
-  ``high_resolution`` optics, 16 sub-band wavelengths of 450-900 nm, 15 um samples, 15 x 15),
-  supersampling 1;
+* ``apply_optics``: the default high-resolution kernel for rendered frames (``frame_kernel``
+  of the ``high_resolution`` optics, 16 sub-band wavelengths of 450-900 nm, 15 um pixels,
+  one centre sample per pixel, 41 x 41), supersampling 1;
 * ``simulate_detector_first_frame``: a new camera seed each repeat, so the fixed-pattern maps
   (PRNU, DSNU) are drawn inside the timing;
 * ``simulate_detector_cached``: the same camera seed, its maps already cached;
 * ``chain``: ``apply_optics`` then ``simulate_detector`` with cached maps;
 * ``frame_with_stars``: the whole per-frame sensor stage of ``satsight generate``
   (``pipeline`` order) for each camera preset: a rendered frame (the same target as (H, W, 3)
-  radiance, 64 W m^-2 sr^-1 on average, a grey Lambertian plate in sunlight) through
-  ``SensorChain`` (band radiance, camera equation, PSF, the auto exposure rule), the
+  radiance, 64 W m^-2 sr^-1 on average, a grey Lambertian plate in sunlight, with the
+  margin ring the renderer adds for the blur: the target continues beyond the frame's left,
+  top and bottom edges) through ``SensorChain`` (band radiance, camera equation, blur
+  kernel, the auto exposure rule), the
   catalogue stars of a rich Milky Way field (RA 280 deg, Dec -5 deg) at 2026-03-20 seen
   from low Earth orbit, hidden behind the target's half, their photons, and the readout.
 
@@ -37,10 +39,13 @@ import numpy as np
 import scipy
 
 from satsight.camera.pinhole import PinholeCamera
-from satsight.render.buffers import RadianceImage
-from satsight.sensor.chain import SensorChain
+from satsight.render.buffers import RadianceImage, margin_pixels_xy
+from satsight.sensor.chain import PSF_SIZE_PX, SensorChain
+from satsight.sensor.convolution import apply_optics
 from satsight.sensor.detector import DetectorParameters, exposure_for_fill, simulate_detector
-from satsight.sensor.optics import Optics, apply_optics, band_wavelengths_m, psf_kernel
+from satsight.sensor.mtf import band_wavelengths_m
+from satsight.sensor.optics import Optics
+from satsight.sensor.psf import frame_kernel
 
 BAND_NM = (450.0, 900.0)
 STAR_FIELD_RA_DEC_DEG = (280.0, -5.0)
@@ -85,11 +90,15 @@ def _frame_with_stars(
     sensor = SensorChain(camera, optics, DetectorParameters(), BAND_NM, camera_seed=1)
     radiance = irradiance * np.float32(160.0)  # 0.4 W m^-2 at f/10 is ~64 W m^-2 sr^-1
     hit = radiance > 0
+    ring_x, _ = margin_pixels_xy(width, height, sensor.margin_px)
+    ring = np.where(ring_x[:, None] < width // 2, np.float32(64.0), np.float32(0.0))
     image = RadianceImage(
         radiance_w_m2_sr=np.repeat(radiance[..., None], 3, axis=2),
         depth_m=np.where(hit, np.float32(1000.0), np.float32(0.0)),
         part_id=hit.astype(np.uint16),
         normals_cam=np.zeros((height, width, 3), np.float32),
+        margin_px=sensor.margin_px,
+        margin_radiance_w_m2_sr=np.repeat(ring, 3, axis=1),
     )
     R = _pointing(*STAR_FIELD_RA_DEC_DEG)
     catalog = load_star_catalog(9.5)
@@ -141,7 +150,9 @@ def main() -> None:
     threads = {} if args.threads is None else {"threads": args.threads}
 
     irradiance = half_covered_irradiance(height, width)
-    psf = psf_kernel(Optics.for_preset("high_resolution"), band_wavelengths_m(), None, 15e-6, 15)
+    psf = frame_kernel(
+        Optics.for_preset("high_resolution"), band_wavelengths_m(), None, 15e-6, PSF_SIZE_PX
+    )
     params = DetectorParameters()
     exposure_s = exposure_for_fill(float(irradiance.max()), params, BAND_NM, 0.7)
 

@@ -15,7 +15,8 @@ from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.sensor import detector as det
 from satsight.sensor import star_field as sf
-from satsight.sensor.optics import Optics, band_wavelengths_m, diffraction_mtf
+from satsight.sensor.mtf import band_wavelengths_m, diffraction_mtf
+from satsight.sensor.optics import Optics
 from satsight.sensor.star_catalog import directions_icrs, load_star_catalog, unit_vectors
 
 EPOCH = "2026-03-20T12:00:00Z"
@@ -210,10 +211,10 @@ def test_image_conserves_photons_and_clips_at_edges(preset):
 
 
 def test_psf_stamp_matches_pixel_integrated_airy():
-    """Core of the stamp vs the Airy PSF integrated over pixels (optics.psf_kernel, 9 x 9
+    """Core of the stamp vs the Airy PSF integrated over pixels (psf.psf_kernel, 9 x 9
     sub-pixels of 5 x 5 samples each), band-weighted by the same photon spectrum: agree to
     the ~1 % of the wings that psf_kernel renormalises into its core."""
-    from satsight.sensor.optics import psf_kernel
+    from satsight.sensor.psf import psf_kernel
 
     optics = Optics.for_preset("high_resolution")
     lam = band_wavelengths_m(BAND, 16)
@@ -230,10 +231,10 @@ def test_defocused_star_stamp_spreads_its_light_over_the_blur_disc():
     """A 6-pixel (90 um) geometric blur disc through the stamps' OTF: each stamp still sums to
     1, the centre pixel falls from ~0.84 to about the pixel's share of the disc,
     p^2 / (pi d^2 / 4) = 0.0354 (times the ~97 % of the light in the disc's core), and the
-    stamp agrees with the spatial-domain kernel (optics.psf_kernel, Airy averaged over 5 x 5
+    stamp agrees with the spatial-domain kernel (psf.psf_kernel, Airy averaged over 5 x 5
     points in each of 9 x 9 sub-pixels, convolved with the area-averaged disc) to the ~1 % of
     the wings that psf_kernel renormalises into its core."""
-    from satsight.sensor.optics import psf_kernel
+    from satsight.sensor.psf import psf_kernel
 
     d_m = 6 * PIXEL_M
     sharp = Optics.for_preset("high_resolution")

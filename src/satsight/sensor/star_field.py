@@ -37,7 +37,8 @@ from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import check_band_nm
 from satsight.sensor.detector import DetectorParameters
-from satsight.sensor.optics import Optics, band_wavelengths_m, defocus_mtf, diffraction_mtf
+from satsight.sensor.mtf import band_wavelengths_m, defocus_mtf, diffraction_mtf
+from satsight.sensor.optics import Optics
 from satsight.sensor.star_catalog import (
     SOLAR_TEMPERATURE_K,
     StarCatalog,
@@ -337,7 +338,7 @@ def _weighted_otf(
     F = size * s: the diffraction OTF averaged over 16 sub-band centre wavelengths weighted
     by the photon spectrum lambda B_lambda(T), times the pixel sinc(p f_x) sinc(p f_y), the
     jitter MTF exp(-2 pi^2 sigma^2 |f|^2) and, with defocus, the signed geometric defocus OTF
-    2 J1(pi d |f|) / (pi d |f|) (:func:`satsight.sensor.optics.defocus_mtf`). The product
+    2 J1(pi d |f|) / (pi d |f|) (:func:`satsight.sensor.mtf.defocus_mtf`). The product
     still vanishes beyond the diffraction cut-off, so the grid cuts no frequency.
     """
     s = _oversampling(optics, pixel_pitch_m, band_nm)

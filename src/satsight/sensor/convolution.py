@@ -1,0 +1,209 @@
+"""Applying a blur kernel to a focal-plane image: windowed, banded FFT convolution.
+
+The kernels come from ``satsight.sensor.psf``. The convolution is linear (zero outside the
+image given), so the light just outside a frame reaches its edge pixels only when the image
+carries a margin ring around the frame (``apply_optics(margin_px=...)``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.fft
+
+from satsight.errors import SatsightError
+from satsight.sensor.threads import check_threads, run_jobs
+
+_FFT_BAND_ELEMENTS = 1 << 18
+"""Elements per band of the banded FFT convolution (about 256 rows of a 1000-wide window)."""
+
+
+def _window(lo: int, hi: int, radius: int, size: int, margin: int, s: int) -> tuple:
+    """Along one axis (samples): the output span [o0, o1) to compute (within reach of the
+    signal [lo, hi), inside the frame [margin, size - margin)) and the span [a, b) to
+    convolve (it holds that output span and all the signal within reach of it), both on
+    whole s-blocks."""
+    o0 = max(lo - radius, margin) // s * s
+    o1 = -(-min(hi + radius, size - margin) // s) * s
+    a = min(o0, max(lo, o0 - radius)) // s * s
+    b = min(-(-max(o1, min(hi, o1 + radius)) // s) * s, size)
+    return o0, o1, a, b
+
+
+def apply_optics(
+    irradiance_w_m2: np.ndarray,
+    psf: np.ndarray,
+    supersampling: int = 1,
+    *,
+    threads: int | None = None,
+    signal_box: tuple[int, int, int, int] | None = None,
+    margin_px: int = 0,
+) -> np.ndarray:
+    """Blur a supersampled focal-plane irradiance image by a kernel and bin it into pixels.
+
+    irradiance_w_m2: (H * s, W * s) focal-plane irradiance (W m^-2) on the supersampled grid
+    (s = supersampling), or, with ``margin_px`` = m > 0, ((H + 2 m) s, (W + 2 m) s): the frame
+    with a ring m pixels wide around it (the light just outside the frame, which the kernel
+    spreads into its edge pixels). psf: 2-D kernel on the same grid, odd size, normally
+    summing to 1 (``satsight.sensor.psf``), so that power is conserved away from the
+    borders. The convolution is the linear, "same"-size convolution of
+    ``scipy.signal.fftconvolve(mode="same")`` (zero outside the image given: without a ring
+    at least the kernel's radius wide, edge pixels miss the light from beyond the frame and
+    read low), computed by FFT in the image's precision (see ``fft_convolve_same``); then
+    each s x s block is averaged, so each output pixel holds the pixel-averaged irradiance
+    (W m^-2) and pixel power = value x pixel area. Only the bounding box of the non-zero
+    input, padded by the kernel radius, is convolved (the rest of the frame is empty space
+    and stays exactly 0); an all-zero frame returns zeros without convolving. Values below
+    zero (FFT round-off, or the undershoot of a kernel with negative taps) are clipped to 0.
+    ``threads`` (default: all cores) does not change the result. ``signal_box`` = (row0, row1,
+    col0, col1), end exclusive, on the supersampled grid of the whole input: a box known to
+    hold every non-zero sample, which saves the scan for it (a box too small loses light).
+    Returns the frame, (H, W), in the input's float dtype.
+    """
+    img = np.asarray(irradiance_w_m2)
+    kern = np.asarray(psf, dtype=np.float64)
+    if img.ndim != 2 or not np.issubdtype(img.dtype, np.floating):
+        raise SatsightError(
+            "irradiance_w_m2 must be a 2-D float image (H*s, W*s); "
+            f"got shape {img.shape}, dtype {img.dtype}"
+        )
+    if kern.ndim != 2 or kern.shape[0] % 2 == 0 or kern.shape[1] % 2 == 0:
+        raise SatsightError(
+            f"psf must be a 2-D kernel with odd sizes (centred); got shape {kern.shape}. "
+            "Build it with psf_kernel or frame_kernel (size_px odd)."
+        )
+    if isinstance(supersampling, bool) or int(supersampling) != supersampling or supersampling < 1:
+        raise SatsightError(f"supersampling must be a positive integer; got {supersampling!r}")
+    n_threads = check_threads(threads)
+    s = int(supersampling)
+    hs, ws = img.shape
+    if hs % s or ws % s:
+        raise SatsightError(
+            f"the supersampled image {img.shape} is not a whole number of {s} x {s} blocks; "
+            "render at (H * s, W * s)."
+        )
+    if isinstance(margin_px, bool) or int(margin_px) != margin_px or margin_px < 0:
+        raise SatsightError(f"margin_px must be a whole number >= 0; got {margin_px!r}")
+    m = int(margin_px)
+    if hs // s <= 2 * m or ws // s <= 2 * m:
+        raise SatsightError(
+            f"an image of {hs // s} x {ws // s} pixels cannot hold a frame inside a ring "
+            f"{m} pixels wide; pass the frame plus its ring, or margin_px=0"
+        )
+    out = np.zeros((hs // s - 2 * m, ws // s - 2 * m), dtype=img.dtype)
+    if signal_box is None:
+        rows = np.flatnonzero(np.any(img != 0, axis=1))
+        if rows.size == 0:
+            return out
+        cols = np.flatnonzero(np.any(img[rows[0] : rows[-1] + 1] != 0, axis=0))
+    else:
+        b0, b1, b2, b3 = (int(v) for v in signal_box)
+        if not (0 <= b0 < b1 <= hs and 0 <= b2 < b3 <= ws):
+            raise SatsightError(
+                f"signal_box must be (row0, row1, col0, col1) inside the {hs} x {ws} image "
+                f"with row0 < row1 and col0 < col1; got {signal_box!r}"
+            )
+        rows, cols = np.array([b0, b1 - 1]), np.array([b2, b3 - 1])
+    ms = m * s
+    ry, rx = kern.shape[0] // 2, kern.shape[1] // 2
+    o0, o1, r0, r1 = _window(int(rows[0]), int(rows[-1]) + 1, ry, hs, ms, s)
+    q0, q1, c0, c1 = _window(int(cols[0]), int(cols[-1]) + 1, rx, ws, ms, s)
+    if o0 >= o1 or q0 >= q1:  # all the light is too far outside the frame to reach it
+        return out
+    target = out[:, (q0 - ms) // s : (q1 - ms) // s]
+
+    def finish(band_r0: int, blurred: np.ndarray) -> None:
+        """Clip a band of blurred rows (a multiple of s) at 0, bin its part inside the frame
+        into ``out``."""
+        top = r0 + band_r0
+        lo, hi = max(top, o0), min(top + blurred.shape[0], o1)
+        if lo >= hi:
+            return
+        block = blurred[lo - top : hi - top, q0 - c0 : q1 - c0]
+        pixels = target[(lo - ms) // s : (hi - ms) // s]
+        if s == 1:
+            np.maximum(block, 0.0, out=pixels)
+        else:
+            h, w = block.shape
+            block = np.maximum(block, 0.0)
+            pixels[...] = block.reshape(h // s, s, w // s, s).mean(axis=(1, 3))
+
+    fft_convolve_same(img[r0:r1, c0:c1], kern, threads=n_threads, row_multiple=s, sink=finish)
+    return out
+
+
+def fft_convolve_same(
+    image: np.ndarray,
+    kernel: np.ndarray,
+    *,
+    threads: int | None = None,
+    row_multiple: int = 1,
+    sink: Callable[[int, np.ndarray], None] | None = None,
+) -> np.ndarray | None:
+    """Linear convolution of ``image`` (H, W) with ``kernel`` (ky, kx), "same" size, by FFT.
+
+    The same result as ``scipy.signal.fftconvolve(image, kernel, mode="same")`` up to FFT
+    round-off (float32 images are transformed in single precision, as scipy does; float64 in
+    double): out[i, j] = sum_ab image[i + (ky - 1) // 2 - a, j + (kx - 1) // 2 - b] k[a, b],
+    zero outside the image. Both axes are zero-padded to 5-smooth lengths M >= H + ky - 1 and
+    N >= W + kx - 1, so the cyclic convolution of the FFTs is the linear one. The work is
+    split into fixed bands (a function of the sizes only) run on ``threads`` threads
+    (default: all cores): real FFTs of row bands, then per band of columns the column FFT,
+    the product with the kernel's spectrum and the inverse column FFT, then inverse real FFTs
+    of row bands. The kernel's spectrum is made per column band from the real FFT of its ky
+    rows, as scipy makes it (no BLAS call: OpenBLAS's own threads would compete with these).
+
+    With ``sink``, each band of output rows (a multiple of ``row_multiple`` rows except at
+    the end) is passed to ``sink(first_row, rows)`` as it is made, the rows being a scratch
+    array it may change, and None is returned; else the (H, W) result is returned.
+    """
+    img = np.asarray(image)
+    real = np.float32 if img.dtype == np.float32 else np.float64
+    img = img.astype(real, copy=False)
+    kern = np.asarray(kernel, dtype=np.float64)
+    if img.ndim != 2 or kern.ndim != 2 or 0 in img.shape or 0 in kern.shape:
+        raise SatsightError(
+            f"image and kernel must be non-empty 2-D arrays; got {img.shape} and {kern.shape}"
+        )
+    n_threads = check_threads(threads)
+    complex_dtype = np.complex64 if real is np.float32 else np.complex128
+    h, w = img.shape
+    ky, kx = kern.shape
+    oy, ox = (ky - 1) // 2, (kx - 1) // 2
+    m = scipy.fft.next_fast_len(h + ky - 1)
+    n = scipy.fft.next_fast_len(w + kx - 1, real=True)
+    nf = n // 2 + 1
+    kern_rows = scipy.fft.rfft(kern.astype(real), n, axis=1)  # (ky, nf), as scipy does
+    spectrum = np.empty((h, nf), dtype=complex_dtype)
+    result = np.empty((h, w), dtype=real) if sink is None else None
+    step = max(1, _FFT_BAND_ELEMENTS // n)
+    step = max(row_multiple, step // row_multiple * row_multiple)
+    row_bands = [(a, min(a + step, h)) for a in range(0, h, step)]
+    col_step = max(1, _FFT_BAND_ELEMENTS // m)
+    col_bands = [(a, min(a + col_step, nf)) for a in range(0, nf, col_step)]
+
+    def forward(i: int) -> None:
+        a, b = row_bands[i]
+        padded = np.zeros((b - a, n), dtype=real)  # faster than rfft's own zero-padding
+        padded[:, :w] = img[a:b]
+        spectrum[a:b] = scipy.fft.rfft(padded, axis=1)
+
+    def columns(i: int) -> None:
+        a, b = col_bands[i]
+        block = scipy.fft.fft(spectrum[:, a:b], m, axis=0)
+        block *= scipy.fft.fft(kern_rows[:, a:b], m, axis=0)
+        spectrum[:, a:b] = scipy.fft.ifft(block, axis=0, overwrite_x=True)[oy : oy + h]
+
+    def inverse(i: int) -> None:
+        a, b = row_bands[i]
+        rows = scipy.fft.irfft(spectrum[a:b], n, axis=1)[:, ox : ox + w]
+        if sink is None:
+            result[a:b] = rows
+        else:
+            sink(a, rows)
+
+    run_jobs(forward, len(row_bands), n_threads)
+    run_jobs(columns, len(col_bands), n_threads)
+    run_jobs(inverse, len(row_bands), n_threads)
+    return result
