@@ -25,6 +25,12 @@ COLOR_STEP = 1.0 / 255.0  # trimesh stores glTF base colours as 8-bit
 ATOL = 1e-12
 
 
+def assert_same_values(got, want, atol: float = 1e-6) -> None:
+    np.testing.assert_allclose(got.base_color_rgb, want.base_color_rgb, atol=atol)
+    for key in ("metallic", "roughness", "ior", "alpha"):
+        assert getattr(got, key) == pytest.approx(getattr(want, key), abs=atol), key
+
+
 def write_text(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
@@ -63,8 +69,9 @@ def test_obj_round_trip_keeps_parts_materials_and_vertices(
     np.testing.assert_allclose(loaded.vertices_m, original.vertices_m, rtol=0, atol=OBJ_DIGITS_M)
     np.testing.assert_array_equal(loaded.faces, original.faces)
     np.testing.assert_array_equal(loaded.face_part_index, original.face_part_index)
-    for name in set(loaded.part_materials):
-        assert loaded.materials[name] is FIRST_MATERIALS[name]  # the library definition
+    for name in set(loaded.part_materials):  # the MTL's values (written from the library)
+        assert_same_values(loaded.materials[name], FIRST_MATERIALS[name])
+        assert loaded.materials[name].source.startswith("sat.obj")
 
 
 def test_obj_materials_rebuilt_from_mtl_without_library(tmp_path: Path) -> None:
@@ -73,21 +80,22 @@ def test_obj_materials_rebuilt_from_mtl_without_library(tmp_path: Path) -> None:
     loaded = load_mesh(obj_path, materials={})
     assert set(loaded.materials) == set(original.part_materials)
     for name in set(original.part_materials):
-        want, got = FIRST_MATERIALS[name], loaded.materials[name]
-        np.testing.assert_allclose(got.base_color_rgb, want.base_color_rgb, atol=1e-6)
-        for key in ("metallic", "roughness", "ior", "alpha"):
-            assert getattr(got, key) == pytest.approx(getattr(want, key), abs=1e-6), (name, key)
-        assert "sat.obj" in got.source
+        assert_same_values(loaded.materials[name], FIRST_MATERIALS[name])
+        assert "sat.obj" in loaded.materials[name].source
 
 
-def test_user_library_overrides_first_materials(tmp_path: Path) -> None:
+def test_user_library_is_used_where_asked_for(tmp_path: Path) -> None:
     original = generate_satellite("one_wing", 5)
     obj_path, _ = write_obj(original, tmp_path / "sat.obj")
     shiny = FIRST_MATERIALS["brushed_aluminium"]
-    library = {"solar_cell": shiny}
-    loaded = load_mesh(obj_path, materials=library)
-    assert loaded.materials["solar_cell"] is shiny
-    assert loaded.materials["cfrp"].source.startswith("sat.obj")  # not in the library: MTL
+    library = {"shiny": shiny}
+    loaded = load_mesh(obj_path, materials=library, builtin_materials={"solar_cell": "shiny"})
+    cells = [n for n in loaded.part_names if n.endswith("_cells")]
+    for name in cells:
+        assert loaded.part_materials[loaded.part_names.index(name)] == "shiny"
+    assert loaded.materials["shiny"] is shiny
+    assert "solar_cell" not in loaded.part_materials
+    assert loaded.materials["cfrp"].source.startswith("sat.obj")  # not asked for: MTL
 
 
 def test_scale_multiplies_obj_vertices(tmp_path: Path) -> None:
@@ -130,7 +138,7 @@ def test_obj_parts_split_by_object_and_material(tmp_path: Path) -> None:
     assert mesh.part_names == ("panel_solar_cell", "panel_kapton", "strut")
     assert mesh.part_materials == ("solar_cell", "kapton", "kapton")
     np.testing.assert_array_equal(mesh.face_part_index, [0, 0, 1, 2])  # the quad: 2 triangles
-    assert mesh.materials["solar_cell"] is FIRST_MATERIALS["solar_cell"]  # library wins
+    assert mesh.materials["solar_cell"].base_color_rgb == (1.0, 1.0, 1.0)  # the file wins
     kapton = mesh.materials["kapton"]
     assert kapton.base_color_rgb == (0.9, 0.6, 0.1)
     assert kapton.ior == 1.7
@@ -190,7 +198,8 @@ def test_glb_nodes_become_parts_with_pbr_materials_and_transforms(tmp_path: Path
     assert gold.alpha == 1.0 and gold.ior == 1.5  # OPAQUE; glTF's default IOR
     assert (kapton.metallic, kapton.roughness) == pytest.approx((0.1, 0.7), abs=ATOL)
     assert kapton.alpha == pytest.approx(0.4, abs=COLOR_STEP)  # BLEND: opacity from alpha
-    assert mesh.materials["optical_lens"] is FIRST_MATERIALS["optical_lens"]  # library wins
+    lens_material = mesh.materials["optical_lens"]  # the file wins over the built-in name
+    assert (lens_material.metallic, lens_material.roughness) == pytest.approx((0.5, 0.5))
 
 
 def gltf_document(node_scale, material: dict | None) -> dict:

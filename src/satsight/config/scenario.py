@@ -101,8 +101,16 @@ class CameraConfig(_Strict):
 
 
 class ProceduralTargetConfig(_Strict):
+    """A procedural satellite (``satsight.scene.procedural``): class, seed and surfaces.
+
+    smooth_normals: crease-angle shading normals on curved parts (dish, cylinders).
+    textures: solar-cell grids, MLI crinkle and radiator strips.
+    """
+
     satellite_class: str = "two_wings"
     seed: int = Field(default=0, ge=0)
+    smooth_normals: bool = True
+    textures: bool = True
 
     @model_validator(mode="after")
     def _known_class(self) -> ProceduralTargetConfig:
@@ -115,8 +123,31 @@ class ProceduralTargetConfig(_Strict):
 
 
 class MeshTargetConfig(_Strict):
+    """A mesh file (``satsight.scene.loading.load_mesh``).
+
+    materials: {part name or the file's material name: built-in material name}; those
+    parts take the built-in material instead of the file's values (which otherwise win,
+    even where a file material is named like a built-in one). crease_angle_deg: parts the
+    file gives no normals are smoothed across edges flatter than this (0: flat triangles).
+    """
+
     path: Path
     scale_m: float = Field(default=1.0, gt=0, description="metres per file unit")
+    materials: dict[str, str] = Field(default_factory=dict)
+    crease_angle_deg: float = Field(default=30.0, ge=0.0, le=180.0)
+
+    @field_validator("materials")
+    @classmethod
+    def _known_builtins(cls, value: dict[str, str]) -> dict[str, str]:
+        from satsight.scene.materials import FIRST_MATERIALS
+
+        unknown = sorted({v for v in value.values() if v not in FIRST_MATERIALS})
+        if unknown:
+            raise ValueError(
+                f"unknown built-in material(s) {', '.join(unknown)}; "
+                f"choose from {', '.join(sorted(FIRST_MATERIALS))}"
+            )
+        return value
 
 
 class TargetConfig(_Strict):

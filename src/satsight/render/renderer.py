@@ -90,11 +90,17 @@ class Renderer:
             mesh, np.array([m.alpha for m in materials]), self.settings.max_transparent_layers
         )
         self._transparent = self._geometry.transparent
-        self._surface = SurfaceModel(materials, self.settings)
+        textures, shading_normals = self._geometry.textures, self._geometry.shading_normals
+        self._surface = SurfaceModel(
+            materials, self.settings, textures, shading_normals=shading_normals
+        )
         # Surfaces reached by a bounce: roughness floored (path regularisation).
         self._surface_indirect = SurfaceModel(
             [regularized(m, self.settings.indirect_min_roughness) for m in materials],
             self.settings,
+            textures,
+            min_roughness=self.settings.indirect_min_roughness,
+            shading_normals=shading_normals,
         )
         # Diffuse environment kernel per part and SH band (see SurfaceModel.diffuse_kernel).
         self._l_max = self.settings.sh_order
@@ -353,8 +359,13 @@ class Renderer:
         else:
             hit = mi.Bool(True)
             geo = {"hit": hit, **self._geometry.surface_at(hits["face"], hits["u"], hits["v"], hit)}
-        n = geo["n_geo"]
-        geo["n"] = dr.select(dr.dot(n, d_body) > 0.0, -n, n)
+        # Shading normal geo["n"] and geometric normal geo["n_facing"], both on the camera's
+        # side, and texture coordinates (mip level from the sub-pixel footprint).
+        footprint_m = None
+        if self._geometry.textures is not None:
+            ss = float(self.settings.supersampling)
+            footprint_m = dr.norm(geo["p"] - frame["camera_body"]) / (frame["fx"] * ss)
+        geo.update(self._geometry.shading(geo, -d_body, footprint_m))
         geo["d_cam"] = d_cam
         geo["d_body"] = d_body
         return geo
@@ -374,9 +385,12 @@ class Renderer:
         the stored normal, ``face + faces`` for the other (see ``TargetGeometry.face_side``).
 
         Normals are flat per face, so this one small kernel per frame replaces the SH
-        evaluation at every shaded lane by a gather.
+        evaluation at every shaded lane by a gather. None where the mesh has shading
+        normals: the sum is then evaluated at each hit's shading normal.
         """
         mi, dr = self._mi, self._dr
+        if self._geometry.shading_normals:
+            return None
         faces = dr.width(self._geometry.face_part)
         side = dr.arange(mi.UInt32, 2 * faces)
         face = side % faces
@@ -490,6 +504,8 @@ class Renderer:
         vertex = {
             "p": geo["p"],
             "n": geo["n"],
+            "n_geo": geo["n_facing"],
+            **{k: geo[k] for k in ("uv", "lod") if k in geo},
             "part": geo["part"],
             "wo": -geo["d_body"],
             "side": self._geometry.face_side(geo["face"], geo["n_geo"], -geo["d_body"]),
@@ -527,9 +543,12 @@ class Renderer:
             )
             wo = -ray["direction"]
             ng = found["n_geo"]
+            shade = self._geometry.shading(found, wo)
             vertex = {
                 "p": found["p"],
-                "n": dr.select(dr.dot(ng, wo) < 0.0, -ng, ng),
+                "n": shade["n"],
+                "n_geo": shade["n_facing"],
+                **{k: shade[k] for k in ("uv",) if k in shade},
                 "part": found["part"],
                 "wo": wo,
                 "side": self._geometry.face_side(found["face"], ng, wo),
@@ -593,20 +612,25 @@ class Renderer:
         throughput = vertex["throughput"]
         shading = mi.Frame3f(n)
         wo_local = shading.to_local(wo)
-        origin = p + n * frame["eps"]
-        params = surface.at(part, active)  # gathered once per surface hit
+        origin = p + vertex["n_geo"] * frame["eps"]  # off the geometric surface
+        params = surface.at(part, active, vertex, shading)  # gathered once per surface hit
         radiance = mi.Color3f(0.0)
         if s.sun == "delta":
             wi = frame["sun_dir"]
             wi_local = shading.to_local(wi)
             lit = active & (wi_local.z > 0.0) & (frame["sun_e"] > 0.0)
+            if self._geometry.shading_normals:  # no light from below the geometric surface
+                lit &= dr.dot(wi, vertex["n_geo"]) > 0.0
             lit &= self._geometry.visible(origin, wi, lit, rng(self._shading_segment(depth)))
             f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
             irradiance = frame["sun_e"] * wi_local.z
             radiance += dr.select(lit, (f_diffuse + f_specular) * irradiance, 0.0)
         if s.environment == "unshadowed":
             table = frame["diffuse_env"]
-            diffuse_env = dr.gather(type(table), table, vertex["side"], active)
+            if table is None:  # shading normals: the SH sum at each hit's normal
+                diffuse_env = self._diffuse_environment(frame, n, part)
+            else:
+                diffuse_env = dr.gather(type(table), table, vertex["side"], active)
             kd = surface.diffuse_coefficient(params, wo_local)
             radiance += dr.select(active, kd * diffuse_env, 0.0)
         if frame["body_light"]:

@@ -17,7 +17,17 @@ import numpy as np
 from satsight.lighting import sh
 from satsight.render import ggx, phong
 from satsight.render.settings import RenderSettings
+from satsight.render.textures import TextureTables, guarded
 from satsight.scene.materials import Material
+
+
+@dataclasses.dataclass(frozen=True)
+class SurfaceHit:
+    """The model's parameters at a hit, and the geometric normal in the shading frame
+    (None where it equals the shading normal)."""
+
+    params: object
+    n_geo_local: object = None
 
 
 def _phong_tables(materials: Sequence[Material]) -> dict[str, np.ndarray]:
@@ -44,15 +54,40 @@ class SurfaceModel:
     """The reflection model of every part of a target.
 
     materials: one per part, in part-index order. settings: the model (``brdf``) and, for
-    GGX, its masking term.
+    GGX, its masking term. textures: the target's textures, or None. min_roughness: floor
+    of textured roughness (the path regularisation of surfaces reached by a bounce).
+    shading_normals: whether shading normals may differ from geometric ones (then ``at``
+    keeps the geometric normal of the hit).
     """
 
-    def __init__(self, materials: Sequence[Material], settings: RenderSettings) -> None:
+    def __init__(
+        self,
+        materials: Sequence[Material],
+        settings: RenderSettings,
+        textures: TextureTables | None = None,
+        min_roughness: float = 0.0,
+        shading_normals: bool = False,
+    ) -> None:
         import mitsuba as mi
 
         self._mi = mi
         self.model = settings.brdf
         self.materials = list(materials)
+        self.textures = textures
+        self.min_roughness = float(min_roughness)
+        self.shading_normals = shading_normals
+        self._textured = textures is not None and (
+            textures.has_slot["base_color"] or textures.has_slot["metallic_roughness"]
+        )
+        self._factors = None
+        if self._textured and self.model != "ggx":
+            # The material values the Phong coefficients are computed from.
+            base = np.array([m.base_color_rgb for m in materials], dtype=np.float32)
+            self._factors = {
+                "base": mi.Color3f(base.T),
+                "metallic": mi.Float(np.array([m.metallic for m in materials], np.float32)),
+                "f0": mi.Float(np.array([m.f0 for m in materials], np.float32)),
+            }
         if self.model == "ggx":
             self._params = ggx.GGXParams.from_values(
                 np.array([m.base_color_rgb for m in materials]),
@@ -89,7 +124,7 @@ class SurfaceModel:
         import drjit as dr
 
         fields = [getattr(self._params, k) for k in self._field_names()]
-        dr.eval(*fields)
+        dr.eval(*fields, *(self._factors or {}).values())
 
     def _field_names(self) -> list[str]:
         return [
@@ -98,42 +133,126 @@ class SurfaceModel:
             if not isinstance(getattr(self._params, f.name), str)
         ]
 
-    def at(self, part, active):
-        """The model's parameter container with each field gathered for the lanes' parts;
-        gather once per surface hit and pass it to the calls below."""
+    def at(self, part, active, hit: dict | None = None, frame=None):
+        """The model's parameters at the lanes' hits (``SurfaceHit``): each part's values,
+        textured at ``hit["uv"]`` (with mip level from ``hit["lod"]`` where given), and
+        the geometric normal ``hit["n_geo"]`` in the shading ``frame`` (mi.Frame3f). Gather
+        once per surface hit and pass the result to the calls below."""
         import drjit as dr
 
         changes = {}
         for name in self._field_names():
             table = getattr(self._params, name)
             changes[name] = dr.gather(type(table), table, part, active)
-        return dataclasses.replace(self._params, **changes)
+        if self._textured and hit is not None:
+            self._apply_textures(changes, part, active, hit)
+        params = dataclasses.replace(self._params, **changes)
+        n_geo_local = None
+        if self.shading_normals and hit is not None and frame is not None:
+            n_geo_local = frame.to_local(hit["n_geo"])
+        return SurfaceHit(params, n_geo_local)
+
+    def _apply_textures(self, values: dict, part, active, hit: dict) -> None:
+        """Replace the gathered values by their textured ones where a part has textures."""
+        import drjit as dr
+
+        mi, tex = self._mi, self.textures
+        uv, lod = hit["uv"], hit.get("lod")
+        replace = tex.replaces(part, active)
+        if self.model == "ggx":
+            base, metallic, roughness = values["base"], values["metallic"], values["roughness"]
+        else:
+            f = self._factors
+            base = dr.gather(mi.Color3f, f["base"], part, active)
+            metallic = dr.gather(mi.Float, f["metallic"], part, active)
+        textured = mi.Bool(False)
+
+        def lookup(slot: str, srgb: bool):
+            """(the slot's filtered value, where the lane's part has that texture)."""
+            texture = tex.slot(slot, part, active)
+            has = active & (texture >= 0)
+            value = guarded(
+                has,
+                lambda: tex.sample(texture, uv, has, lod, srgb=srgb),
+                lambda: mi.Color3f(1.0),
+            )
+            return value, has
+
+        if tex.has_slot["base_color"]:
+            value, has = lookup("base_color", srgb=True)
+            base = dr.select(has, dr.select(replace, value, base * value), base)
+            textured |= has
+        if tex.has_slot["metallic_roughness"]:
+            value, has = lookup("metallic_roughness", srgb=False)  # G roughness, B metallic
+            metallic = dr.select(has, dr.select(replace, value.z, metallic * value.z), metallic)
+            if self.model == "ggx":
+                rough = dr.select(replace, value.y, roughness * value.y)
+                roughness = dr.select(has, dr.maximum(rough, self.min_roughness), roughness)
+            textured |= has
+        if self.model == "ggx":
+            values.update(base=base, metallic=metallic, roughness=roughness)
+            return
+        f0 = dr.gather(mi.Float, self._factors["f0"], part, active)
+        kd = (1.0 - metallic) * base * (1.0 - f0)
+        ks = metallic * base + (1.0 - metallic) * f0
+        values["kd"] = dr.select(textured, kd, values["kd"])
+        values["ks"] = dr.select(textured, ks, values["ks"])
 
     # --- what the integrator calls ------------------------------------------------------
+    @staticmethod
+    def _unwrap(params):
+        if isinstance(params, SurfaceHit):
+            return params.params, params.n_geo_local
+        return params, None
+
     def eval_parts(self, params, wi, wo):
-        """(diffuse, specular) parts of f_r(wi, wo), sr^-1 per channel (Color3f each)."""
-        return self._functions[0](wi, wo, params)
+        """(diffuse, specular) parts of f_r(wi, wo), sr^-1 per channel (Color3f each); 0
+        for light from below the geometric surface."""
+        import drjit as dr
+
+        model, n_geo = self._unwrap(params)
+        f_diffuse, f_specular = self._functions[0](wi, wo, model)
+        if n_geo is not None:
+            above = dr.dot(wi, n_geo) > 0.0
+            f_diffuse = dr.select(above, f_diffuse, 0.0)
+            f_specular = dr.select(above, f_specular, 0.0)
+        return f_diffuse, f_specular
 
     def sample(self, params, wo, u_lobe, u2):
-        """A light direction wi for viewer direction wo, and its pdf (solid angle)."""
-        return self._functions[1](wo, u_lobe, u2, params)
+        """A light direction wi for viewer direction wo, and its pdf (solid angle); pdf 0
+        where wi lies below the geometric surface."""
+        import drjit as dr
+
+        model, n_geo = self._unwrap(params)
+        wi, pdf = self._functions[1](wo, u_lobe, u2, model)
+        if n_geo is not None:
+            pdf = dr.select(dr.dot(wi, n_geo) > 0.0, pdf, 0.0)
+        return wi, pdf
 
     def pdf(self, params, wi, wo):
-        """Solid-angle density with which ``sample`` picks wi for viewer direction wo."""
+        """Solid-angle density with which ``sample`` picks wi for viewer direction wo (0
+        below the geometric surface, where ``sample`` gives pdf 0)."""
+        import drjit as dr
+
+        model, n_geo = self._unwrap(params)
         function = {
             "ggx": ggx.ggx_pdf,
             "phong": phong.phong_pdf,
             "improved_phong": phong.improved_phong_pdf,
         }[self.model]
-        return function(wi, wo, params)
+        pdf = function(wi, wo, model)
+        if n_geo is not None:
+            pdf = dr.select(dr.dot(wi, n_geo) > 0.0, pdf, 0.0)
+        return pdf
 
     def diffuse_coefficient(self, params, wo):
         """kd_eq (Color3f) for viewer direction wo: the diffuse part is kd_eq / pi times the
         part's zonal kernel of theta_i (see ``diffuse_band_factors``) over cos(theta_i)."""
+        model, _ = self._unwrap(params)
         if self.model == "ggx":
-            kd, _ = ggx.ggx_diffuse_coefficient(params, wo)
+            kd, _ = ggx.ggx_diffuse_coefficient(model, wo)
         else:
-            kd, _ = self._functions[2](params)
+            kd, _ = self._functions[2](model)
         return kd
 
     def diffuse_band_factors(self, l_max: int) -> np.ndarray:

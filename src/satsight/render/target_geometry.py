@@ -5,17 +5,36 @@ The mesh lives in its body frame shifted to its bounding-box centre (render spac
 docs/design.md "Render space"). A hit is rebuilt from its triangle and barycentrics
 (``v0 + u e1 + v e2``), so shadow and bounce rays start from a point as exact as the mesh.
 Parts with opacity alpha < 1 are passed through stochastically (probability 1 - alpha).
+
+Shading normals (``shading``). Where the mesh has per-corner normals they are
+interpolated with the hit's barycentrics; where a part has a normal map the normal is
+tilted in the tangent frame of the triangle (tangent and bitangent: the directions of
+increasing u and v on the triangle, from its texture coordinates, made orthonormal to
+the interpolated normal). The geometric normal keeps its roles: it decides which side a
+ray sees, it offsets the origins of shadow and bounce rays, and light from below it
+(``SurfaceModel``) never counts, so a shading normal cannot let light through a surface.
+Where the viewer is within ``VIEW_COSINE_MIN`` of the shading horizon, or below it (a
+normal bent away from the viewer at a silhouette), the shading normal is tilted towards
+the viewer until their cosine is ``VIEW_COSINE_MIN`` (a simple form of the shading-normal
+adaptation of Keller et al. 2017, "The Iray light transport simulation and rendering
+system", arXiv:1705.01263, section "Bump and normal mapping"): without it such pixels
+would turn black.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from satsight.render.textures import TextureTables, guarded
 from satsight.scene.mesh import TargetMesh
 
 # Shadow- and bounce-ray origin offset along the normal, relative to the target's size.
 _RAY_OFFSET_PER_M = 2e-5
 _MIN_RAY_OFFSET_M = 1e-5
+# Smallest cosine between the viewer and the shading normal (see the module docstring).
+VIEW_COSINE_MIN = 0.05
+# Grazing views stretch a pixel's footprint by 1 / cos; capped at 1 / 0.01 (mip-mapping).
+_MIN_FOOTPRINT_COSINE = 0.01
 
 
 class TargetGeometry:
@@ -65,6 +84,46 @@ class TargetGeometry:
             self.face_v0, self.face_e1, self.face_e2, self.face_n, self.face_part, self.part_opacity
         )
         self.ray_offset_m = max(_MIN_RAY_OFFSET_M, _RAY_OFFSET_PER_M * mesh.bounding_radius_m)
+        self._surface_tables(mesh, e1, e2, vec3)
+
+    def _surface_tables(self, mesh: TargetMesh, e1: np.ndarray, e2: np.ndarray, vec3) -> None:
+        """Per-triangle corner normals, texture coordinates, tangents and texel scale, and
+        the textures, where the mesh has them."""
+        mi, dr = self._mi, self._dr
+        self.smooth = mesh.corner_normals is not None
+        self.textures = TextureTables(mesh) if mesh.textured else None
+        self.normal_mapped = self.textures is not None and self.textures.has_slot["normal"]
+        # Whether shading normals can differ from the geometric normal.
+        self.shading_normals = self.smooth or self.normal_mapped
+        tables = []
+        if self.smooth:
+            corners = mesh.corner_normals
+            self.face_n_corner = [vec3(corners[:, k]) for k in range(3)]
+            tables += self.face_n_corner
+        if self.textures is not None:
+            uv = mesh.corner_uv
+            self.face_uv = [
+                mi.Point2f(*(mi.Float(uv[:, k, j].astype(np.float32)) for j in range(2)))
+                for k in range(3)
+            ]
+            du1, dv1 = (uv[:, 1] - uv[:, 0]).T
+            du2, dv2 = (uv[:, 2] - uv[:, 0]).T
+            det = du1 * dv2 - du2 * dv1
+            ok = np.abs(det) > 1e-20
+            inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+            dp_du = (e1 * dv2[:, None] - e2 * dv1[:, None]) * inv  # metres per unit u
+            dp_dv = (e2 * du1[:, None] - e1 * du2[:, None]) * inv
+            area_m2 = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+            area_uv = 0.5 * np.abs(det)
+            # uv units per metre (isotropic): scales a footprint in metres to one in uv.
+            uv_per_m = np.sqrt(
+                np.divide(area_uv, area_m2, out=np.zeros_like(area_uv), where=area_m2 > 0)
+            )
+            self.face_uv_per_m = mi.Float(uv_per_m.astype(np.float32))
+            self.face_dp_du, self.face_dp_dv = vec3(dp_du), vec3(dp_dv)
+            tables += [*self.face_uv, self.face_uv_per_m, self.face_dp_du, self.face_dp_dv]
+        if tables:
+            dr.eval(*tables)
 
     @property
     def face_count(self) -> int:
@@ -93,6 +152,81 @@ class TargetGeometry:
             "u": u,
             "v": v,
         }
+
+    def shading(self, surf: dict, wo, footprint_m=None) -> dict:
+        """The normals and texture coordinates of a hit ``surf`` seen from direction
+        ``wo`` (unit, towards the viewer).
+
+        Returns ``n``: unit shading normal on the viewer's side (interpolated, normal
+        mapped, adapted; see the module docstring), ``n_facing``: unit geometric normal on
+        the viewer's side; with textures ``uv`` (Point2f) and, given ``footprint_m`` (the
+        width of the ray's footprint across its direction at the hit, m), ``lod``: log2 of
+        the footprint on the surface, in texture units (for mip-mapping). For a flat
+        untextured mesh ``n`` is ``n_facing``.
+        """
+        mi, dr = self._mi, self._dr
+        n_geo = surf["n_geo"]
+        n_facing = dr.select(dr.dot(n_geo, wo) < 0.0, -n_geo, n_geo)
+        out = {"n": n_facing, "n_facing": n_facing}
+        face, u, v = surf["face"], surf["u"], surf["v"]
+        active = surf.get("hit", mi.Bool(True))
+        if self.textures is not None:
+            w = 1.0 - u - v
+            uv = [dr.gather(mi.Point2f, t, face, active) for t in self.face_uv]
+            out["uv"] = w * uv[0] + u * uv[1] + v * uv[2]
+            if footprint_m is not None:
+                # The footprint ellipse's axes are f and f / cos(view): their geometric
+                # mean, in texture units (uv per metre of the triangle).
+                scale = dr.gather(mi.Float, self.face_uv_per_m, face, active)
+                cos_view = dr.maximum(dr.abs(dr.dot(n_geo, wo)), _MIN_FOOTPRINT_COSINE)
+                out["lod"] = dr.log2(footprint_m * scale * dr.rsqrt(cos_view))
+        if not self.shading_normals:
+            return out
+        if self.smooth:
+            w = 1.0 - u - v
+            corners = [dr.gather(mi.Vector3f, t, face, active) for t in self.face_n_corner]
+            n = w * corners[0] + u * corners[1] + v * corners[2]
+            length = dr.norm(n)
+            n = dr.select(length > 1e-6, n / length, n_geo)
+        else:
+            n = n_geo
+        # The surface's own side: that of the interpolated normal (files may wind
+        # triangles against their normals); the view decides which side is seen.
+        flip = dr.dot(n, n_facing) < 0.0
+        if self.normal_mapped:
+            n = self._normal_mapped(surf, n, out, active)
+        n = dr.select(flip, -n, n)
+        # Keep the viewer above the shading horizon (adaptation).
+        cos_view = dr.dot(n, wo)
+        bent = dr.normalize(n + (VIEW_COSINE_MIN - cos_view) * wo)
+        out["n"] = dr.select(cos_view < VIEW_COSINE_MIN, bent, n)
+        return out
+
+    def _normal_mapped(self, surf: dict, n, out: dict, active):
+        """n tilted by the part's normal map (tangent space: +x along u, +y along v)."""
+        mi, dr = self._mi, self._dr
+        tex = self.textures
+        texture = tex.slot("normal", surf["part"], active)
+        mapped = active & (texture >= 0)
+        face, uv, lod = surf["face"], out["uv"], out.get("lod")
+
+        def tilt():
+            value = tex.sample(texture, uv, mapped, lod)
+            scale = tex.normal_scale(surf["part"], mapped)
+            dp_du = dr.gather(mi.Vector3f, self.face_dp_du, face, mapped)
+            dp_dv = dr.gather(mi.Vector3f, self.face_dp_dv, face, mapped)
+            t = dr.normalize(dp_du - n * dr.dot(n, dp_du))
+            b = dp_dv - n * dr.dot(n, dp_dv)
+            b = dr.normalize(b - t * dr.dot(t, b))
+            x = (2.0 * value.x - 1.0) * scale
+            y = (2.0 * value.y - 1.0) * scale
+            z = 2.0 * value.z - 1.0
+            tilted = dr.normalize(x * t + y * b + z * n)
+            # Degenerate texture coordinates or a broken map leave the normal as it was.
+            ok = mapped & dr.isfinite(tilted.x) & (dr.dot(tilted, n) > 0.0)
+            return dr.select(ok, tilted, n)
+
+        return guarded(mapped, tilt, lambda: mi.Vector3f(n))
 
     def facing_normal(self, surf: dict, towards):
         """The surface's unit normal flipped to the side of ``towards`` (surfaces are

@@ -6,15 +6,29 @@ where one object uses several materials). glTF: one part per node holding a mesh
 the node, in node order; a mesh of several primitives gives ``<node>_prim<k>`` parts. Node
 transforms (the scene graph) are applied; mirroring transforms keep triangles outward.
 
-Materials. A part's material name found in the library (``materials``, else
-``FIRST_MATERIALS``) uses the library definition. Otherwise a ``Material`` of that name is
-built from the file: glTF ``pbrMetallicRoughness`` base colour / metallic / roughness (glTF
-defaults 1, 1, 1), opacity = base colour alpha unless ``alphaMode`` is OPAQUE, IOR from
-``KHR_materials_ior`` (default 1.5); MTL ``Kd``, ``Pm`` (default 0), ``Pr`` (else from ``Ns``
-as (2 / (Ns + 2))^(1/4), else 0.5), ``Ni`` (default 1.5), ``d`` (else 1 - ``Tr``, else 1).
-A name with no definition anywhere gets the values of ``DEFAULT_MATERIAL_NAME``; faces with
-no material at all use ``DEFAULT_MATERIAL_NAME`` itself. Each such fallback is logged.
-Textures are ignored.
+Materials. A part's material comes from the file: glTF ``pbrMetallicRoughness`` base colour /
+metallic / roughness (glTF defaults 1, 1, 1), opacity = base colour alpha unless
+``alphaMode`` is OPAQUE, IOR from ``KHR_materials_ior`` (default 1.5); MTL ``Kd``, ``Pm``
+(default 0), ``Pr`` (else from ``Ns`` as (2 / (Ns + 2))^(1/4), else 0.5), ``Ni`` (default
+1.5), ``d`` (else 1 - ``Tr``, else 1). The file's values win even where a material's name
+is that of a built-in material: a library material (``materials``, else
+``FIRST_MATERIALS``) is used only where ``builtin_materials`` asks for it, by part name or
+by the file's material name (the scenario's ``target.mesh.materials``). A name the file
+does not define gets the values of ``DEFAULT_MATERIAL_NAME``; faces with no material at
+all use ``DEFAULT_MATERIAL_NAME`` itself. Each choice is logged (INFO: which materials
+come from the file and which are built-in; WARNING: every fallback).
+
+Surfaces. Shading normals come from the file (OBJ ``vn``, glTF ``NORMAL``, turned by the
+node transform's inverse transpose); parts without them get crease-angle normals
+(``crease_angle_deg``, ``satsight.scene.normals``; 0 keeps triangles flat). Texture
+coordinates (OBJ ``vt``, glTF ``TEXCOORD_0``) and textures load with them: glTF
+``baseColorTexture``, ``metallicRoughnessTexture`` (G roughness, B metallic) and
+``normalTexture`` (with its ``scale``), and their samplers' wrap modes; OBJ ``map_Kd``.
+Textures multiply the material's factors (glTF 2.0 section 3.9; the MTL format's
+``map_Kd`` multiplies ``Kd``). Not read: other texture coordinate sets, texture transforms
+(``KHR_texture_transform``), emission, occlusion, OBJ bump and PBR maps (each logged when
+present). A part given a built-in material keeps its normal map and drops its colour
+textures.
 
 Units. glTF is in metres; OBJ has no unit and is read as metres. Both are multiplied by
 ``scale_m``.
@@ -35,7 +49,9 @@ import trimesh
 
 from satsight.errors import SatsightError
 from satsight.scene.materials import DEFAULT_MATERIAL_NAME, FIRST_MATERIALS, Material
-from satsight.scene.mesh import TargetMesh, merge_parts
+from satsight.scene.mesh import PartSurface, TargetMesh, merge_parts
+from satsight.scene.normals import DEFAULT_CREASE_ANGLE_DEG
+from satsight.scene.textures import SurfaceTextures, TextureImage
 
 log = logging.getLogger(__name__)
 
@@ -49,9 +65,20 @@ _OBJ_DIRECTIVE = re.compile(r"^(o|g|usemtl|f)[ \t]+(.*?)[ \t]*$", re.MULTILINE)
 
 
 def load_mesh(
-    path: str | Path, materials: Mapping[str, Material] | None = None, scale_m: float = 1.0
+    path: str | Path,
+    materials: Mapping[str, Material] | None = None,
+    scale_m: float = 1.0,
+    builtin_materials: Mapping[str, str] | None = None,
+    crease_angle_deg: float = DEFAULT_CREASE_ANGLE_DEG,
 ) -> TargetMesh:
-    """Read an OBJ / glTF / GLB file into a TargetMesh (vertices in metres times ``scale_m``)."""
+    """Read an OBJ / glTF / GLB file into a TargetMesh (vertices in metres times ``scale_m``).
+
+    materials: the library that ``builtin_materials`` picks from (default
+    ``FIRST_MATERIALS``). builtin_materials: {part name or file material name: library
+    material name}, the parts that take a library material instead of the file's (a part
+    name wins over a material name). crease_angle_deg: smoothing angle for parts the file
+    gives no normals (0: flat triangles).
+    """
     path = Path(path)
     if not path.is_file():
         raise SatsightError(f"mesh file '{path}' does not exist (or is not a file)")
@@ -63,6 +90,8 @@ def load_mesh(
         )
     if not (np.isfinite(scale_m) and scale_m > 0):
         raise SatsightError(f"scale_m must be a positive number of metres, got {scale_m}")
+    if not (np.isfinite(crease_angle_deg) and 0.0 <= crease_angle_deg <= 180.0):
+        raise SatsightError(f"crease_angle_deg must be in [0, 180] degrees, got {crease_angle_deg}")
     library = dict(FIRST_MATERIALS if materials is None else materials)
     if suffix == ".obj":
         parts, file_materials = _read_obj(path)
@@ -70,35 +99,102 @@ def load_mesh(
         header = _gltf_json(path)
         _refuse_compression(header, path)
         parts, file_materials = _read_gltf(path, header)
-    parts, resolved = _resolve_materials(parts, library, file_materials, path)
+    parts, resolved = _resolve_materials(
+        parts, library, file_materials, path, dict(builtin_materials or {})
+    )
     parts, resolved = _whitespace_free_names(parts, resolved)
-    scaled = [(n, m, v * scale_m, f) for n, m, v, f in parts]
-    return merge_parts(scaled, materials=resolved, name=path.stem)
+    scaled = [(n, m, v * scale_m, f, surface) for n, m, v, f, surface in parts]
+    crease = float(crease_angle_deg) if crease_angle_deg > 0 else None
+    return merge_parts(scaled, materials=resolved, name=path.stem, crease_angle_deg=crease)
 
 
 # --- shared -----------------------------------------------------------------------------------
-def _resolve_materials(parts, library: dict, file_materials: dict, path: Path):
-    """Parts with a material name each, and the definitions: library, file, then default."""
-    resolved = dict(library)
+def _check_builtin_request(parts, library: dict, builtin: dict, path: Path) -> None:
+    """Refuse built-in requests that name no library material, or no part or material."""
+    unknown = sorted({v for v in builtin.values() if v not in library})
+    if unknown:
+        raise SatsightError(
+            f"target.mesh.materials asks for unknown built-in material(s) {', '.join(unknown)}; "
+            f"known: {', '.join(sorted(library))}"
+        )
+    part_names = {p[0] for p in parts}
+    material_names = {p[1] for p in parts if p[1] is not None}
+    unused = sorted(set(builtin) - part_names - material_names)
+    if unused:
+        raise SatsightError(
+            f"target.mesh.materials names {', '.join(repr(k) for k in unused)}, which is "
+            f"neither a part nor a material of {path.name}; parts: "
+            f"{', '.join(sorted(part_names))}; materials: {', '.join(sorted(material_names))}"
+        )
+
+
+def _resolve_materials(parts, library: dict, file_materials: dict, path: Path, builtin: dict):
+    """Parts with a material name each, and their definitions: a built-in where
+    ``builtin`` asks for one, else the file's, else the default's values (see the module
+    docstring). A file material whose name is taken by a requested built-in is renamed
+    ``<name>_file``."""
+    _check_builtin_request(parts, library, builtin, path)
     default = library.get(DEFAULT_MATERIAL_NAME, FIRST_MATERIALS[DEFAULT_MATERIAL_NAME])
-    named, bare = [], []
-    for part_name, material_name, vertices, faces in parts:
+    choices = [builtin.get(p[0], builtin.get(p[1])) for p in parts]
+    resolved: dict[str, Material] = {c: library[c] for c in choices if c is not None}
+    if any(c is None and p[1] is None for c, p in zip(choices, parts, strict=True)):
+        resolved.setdefault(DEFAULT_MATERIAL_NAME, default)
+    renamed: dict[str, str] = {}  # file material name -> its name in the mesh
+
+    def claim(name: str, material: Material) -> str:
+        if name not in renamed:
+            final = name
+            if final in resolved:  # a built-in of this name is asked for elsewhere
+                final = _unique(f"{name}_file", set(resolved) | set(file_materials))
+                log.warning(
+                    "%s: material '%s' of the file is renamed '%s' (the built-in '%s' is "
+                    "asked for by target.mesh.materials)",
+                    path.name,
+                    name,
+                    final,
+                    name,
+                )
+            renamed[name] = final
+            resolved[final] = material if final == name else replace(material, name=final)
+        return renamed[name]
+
+    named, bare, from_builtin, missing = [], [], [], []
+    for choice, (part_name, material_name, vertices, faces, surface) in zip(
+        choices, parts, strict=True
+    ):
+        if choice is not None:
+            from_builtin.append(f"{part_name} ({material_name or 'no material'} -> {choice})")
+            if surface is not None and surface.textures is not None:
+                surface = replace(surface, textures=surface.textures.without_colour())
+            named.append((part_name, choice, vertices, faces, surface))
+            continue
         if material_name is None:
             bare.append(part_name)
             material_name = DEFAULT_MATERIAL_NAME
-            resolved.setdefault(material_name, default)
-        elif material_name not in resolved and material_name in file_materials:
-            resolved[material_name] = file_materials[material_name]
-        elif material_name not in resolved:
-            log.warning(
-                "%s: material '%s' has no definition; using the values of '%s'",
-                path.name,
-                material_name,
-                DEFAULT_MATERIAL_NAME,
-            )
+        elif material_name in file_materials:
+            material_name = claim(material_name, file_materials[material_name])
+        else:
+            if material_name not in renamed:
+                missing.append(material_name)
             source = f"assumed: no definition in {path.name}; values of {DEFAULT_MATERIAL_NAME}"
-            resolved[material_name] = replace(default, name=material_name, source=source)
-        named.append((part_name, material_name, vertices, faces))
+            material_name = claim(
+                material_name, replace(default, name=material_name, source=source)
+            )
+        named.append((part_name, material_name, vertices, faces, surface))
+    for name in missing:
+        hint = ""
+        if name in library:
+            hint = (
+                f" (a built-in material '{name}' exists; set target.mesh.materials: "
+                f"{{{name}: {name}}} to use it)"
+            )
+        log.warning(
+            "%s: material '%s' has no definition; using the values of '%s'%s",
+            path.name,
+            name,
+            DEFAULT_MATERIAL_NAME,
+            hint,
+        )
     if bare:
         shown = ", ".join(bare[:5]) + (", ..." if len(bare) > 5 else "")
         log.warning(
@@ -108,6 +204,13 @@ def _resolve_materials(parts, library: dict, file_materials: dict, path: Path):
             shown,
             DEFAULT_MATERIAL_NAME,
         )
+    from_file = sorted(m for m, final in renamed.items() if m in file_materials)
+    log.info(
+        "%s: materials from the file: %s; built-in (target.mesh.materials): %s",
+        path.name,
+        ", ".join(from_file) or "none",
+        ", ".join(from_builtin) or "none",
+    )
     return named, resolved
 
 
@@ -143,7 +246,7 @@ def _whitespace_free_names(parts, materials: dict):
     def clean(name: str) -> str:
         return re.sub(r"\s+", "_", name.strip()) or "unnamed"
 
-    used = {m for _, m, _, _ in parts}
+    used = {p[1] for p in parts}
     renamed: dict[str, str] = {}
     taken_materials = {name for name in materials if name not in used}
     for name in sorted(used):
@@ -152,7 +255,7 @@ def _whitespace_free_names(parts, materials: dict):
     for old, new in renamed.items():
         resolved[new] = materials[old] if new == old else replace(materials[old], name=new)
     taken_parts: set[str] = set()
-    cleaned = [(_unique(clean(n), taken_parts), renamed[m], v, f) for n, m, v, f in parts]
+    cleaned = [(_unique(clean(n), taken_parts), renamed[m], *rest) for n, m, *rest in parts]
     return cleaned, resolved
 
 
@@ -231,21 +334,88 @@ def _read_obj(path: Path):
     )
     _refuse_empty(scene, path)
     text = path.read_text(encoding="utf-8", errors="replace")
+    defined: set[str] = set()  # names of the materials the MTL files define
     for library_file in re.findall(r"^mtllib[ \t]+(.+?)[ \t]*$", text, flags=re.MULTILINE):
-        if not (path.parent / library_file).is_file():
+        mtl = path.parent / library_file
+        if not mtl.is_file():
             log.warning("%s: material library '%s' not found", path.name, library_file)
+            continue
+        mtl_text = mtl.read_text(encoding="utf-8", errors="replace")
+        defined |= set(re.findall(r"^[ \t]*newmtl[ \t]+(.+?)[ \t]*$", mtl_text, re.M))
+        _log_unread_mtl_maps(mtl, mtl_text)
     runs = _obj_runs(text)
     geometry = {k: g for k, g in scene.geometry.items() if isinstance(g, trimesh.Trimesh)}
-    parts, file_materials, taken = [], {}, set()
+    parts, file_materials, textures, taken = [], {}, {}, set()
     for name, material, mesh in _name_obj_parts(runs, geometry, path):
         if len(mesh.faces) == 0:
             continue
         vertices = np.array(mesh.vertices, dtype=float)
-        parts.append((_unique(name, taken), material, vertices, np.array(mesh.faces)))
-        parsed = getattr(mesh.visual, "material", None)  # trimesh's parse of the MTL entry
+        # trimesh's parse of the MTL entry (it makes one up for names the MTL lacks).
+        parsed = getattr(mesh.visual, "material", None) if material in defined else None
         if material is not None and parsed is not None and material not in file_materials:
             file_materials[material] = _mtl_material(material, parsed, path)
+            image = getattr(parsed, "image", None)
+            if image is not None:
+                textures[material] = SurfaceTextures(
+                    base_color=_texture_image(image, "srgb", ("repeat", "repeat"), path)
+                )
+        surface = _part_surface(mesh, textures.get(material), path, name)
+        parts.append((_unique(name, taken), material, vertices, np.array(mesh.faces), surface))
     return parts, file_materials
+
+
+def _log_unread_mtl_maps(mtl: Path, text: str) -> None:
+    """Log the MTL texture maps satsight does not read (all but ``map_Kd``)."""
+    keys = re.findall(r"^[ \t]*(map_\w+|bump|norm|disp|refl)[ \t]", text, re.M)
+    unread = sorted({k for k in keys if k.lower() != "map_kd"})
+    if unread:
+        log.warning("%s: texture maps not read: %s", mtl.name, ", ".join(unread))
+
+
+def _file_normals(mesh: trimesh.Trimesh) -> np.ndarray | None:
+    """The vertex normals the file gave (trimesh keeps them in its cache), else None:
+    trimesh would compute smooth ones on request, which ignore the crease angle."""
+    cache = getattr(getattr(mesh, "_cache", None), "cache", {})
+    normals = cache.get("vertex_normals") if isinstance(cache, dict) else None
+    if normals is None or np.shape(normals) != np.shape(mesh.vertices):
+        return None
+    return np.asarray(normals, dtype=np.float64)
+
+
+def _part_surface(mesh: trimesh.Trimesh, textures, path: Path, name: str) -> PartSurface | None:
+    """Normals, texture coordinates and textures of one loaded part (None if it has none)."""
+    normals = _file_normals(mesh)
+    uv = getattr(mesh.visual, "uv", None)
+    if uv is not None:
+        uv = np.asarray(uv, dtype=np.float64)
+        if uv.shape != (len(mesh.vertices), 2) or not np.all(np.isfinite(uv)):
+            uv = None
+    if textures is not None and textures.empty:
+        textures = None
+    if textures is not None and uv is None:
+        log.warning(
+            "%s: part '%s' has textures but no texture coordinates; not textured", path.name, name
+        )
+        textures = None
+    if normals is None and uv is None:
+        return None
+    return PartSurface(vertex_normals=normals, vertex_uv=uv, textures=textures)
+
+
+def _texture_image(image, encoding: str, wrap_uv, path: Path) -> TextureImage | None:
+    """A TextureImage from a PIL image (8-bit RGB; 16-bit and float images are scaled)."""
+    try:
+        mode = getattr(image, "mode", "RGB")
+        if mode.startswith("I") or mode == "F":  # 16/32-bit grey
+            values = np.asarray(image, dtype=np.float64)
+            top = 65535.0 if values.max(initial=0) > 255 else 255.0
+            pixels = np.round(np.clip(values / top, 0, 1) * 255).astype(np.uint8)
+        else:
+            pixels = np.asarray(image.convert("RGB"), dtype=np.uint8)
+        return TextureImage(pixels, encoding, wrap_uv)
+    except (OSError, ValueError, SatsightError) as error:
+        log.warning("%s: a texture could not be read (%s); ignored", path.name, error)
+        return None
 
 
 def _mtl_scalar(values: dict, key: str) -> float | None:
@@ -383,7 +553,7 @@ def _read_gltf(path: Path, header: dict):
         entries.append((key, transform, mesh))
     entries.sort(key=lambda e: e[0])
 
-    parts, file_materials, taken = [], {}, set()
+    parts, file_materials, textures, taken = [], {}, {}, set()
     unnamed: dict[int, str] = {}
     primitives_seen: dict[tuple[int, str], int] = {}
     for (index, owner, primitive), transform, mesh in entries:
@@ -401,11 +571,83 @@ def _read_gltf(path: Path, header: dict):
                 matches = json_materials.get(material.name, [])
                 entry = matches[0] if len(matches) == 1 else None
                 file_materials[material_name] = _gltf_material(material_name, material, entry, path)
+                textures[material_name] = _gltf_textures(material, entry, header, path)
         vertices = trimesh.transformations.transform_points(
             np.asarray(mesh.vertices, float), transform
         )
         faces = np.asarray(mesh.faces, dtype=np.int64)
         if np.linalg.det(transform[:3, :3]) < 0:
             faces = faces[:, ::-1]
-        parts.append((_unique(name, taken), material_name, vertices, faces))
+        surface = _part_surface(mesh, textures.get(material_name), path, name)
+        if surface is not None and surface.vertex_normals is not None:
+            # Normals transform with the inverse transpose of the node's linear part.
+            turned = surface.vertex_normals @ np.linalg.inv(transform[:3, :3])
+            surface = replace(surface, vertex_normals=turned)
+        parts.append((_unique(name, taken), material_name, vertices, faces, surface))
     return parts, file_materials
+
+
+_GLTF_WRAP = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
+
+
+def _gltf_texture_info(header: dict, info: dict | None, path: Path, slot: str):
+    """(wrap_uv) of a material's texture reference ``info``, logging what is not read."""
+    if not info:
+        return ("repeat", "repeat")
+    if info.get("texCoord", 0) != 0:
+        log.warning(
+            "%s: %s uses TEXCOORD_%s; satsight reads TEXCOORD_0 only",
+            path.name,
+            slot,
+            info.get("texCoord"),
+        )
+    if "KHR_texture_transform" in info.get("extensions", {}):
+        log.warning("%s: %s has a KHR_texture_transform, which is not applied", path.name, slot)
+    textures = header.get("textures", [])
+    index = info.get("index")
+    texture = textures[index] if isinstance(index, int) and 0 <= index < len(textures) else {}
+    samplers = header.get("samplers", [])
+    sampler_index = texture.get("sampler")
+    sampler = (
+        samplers[sampler_index]
+        if isinstance(sampler_index, int) and 0 <= sampler_index < len(samplers)
+        else {}
+    )
+    return (
+        _GLTF_WRAP.get(sampler.get("wrapS", 10497), "repeat"),
+        _GLTF_WRAP.get(sampler.get("wrapT", 10497), "repeat"),
+    )
+
+
+def _gltf_textures(
+    material, entry: dict | None, header: dict, path: Path
+) -> SurfaceTextures | None:
+    """The base-colour, metallic-roughness and normal textures of a glTF material (the
+    images as trimesh decoded them; wrap modes and the normal scale from the JSON)."""
+    entry = entry or {}
+    pbr = entry.get("pbrMetallicRoughness", {})
+    slots = {
+        "base_color": ("baseColorTexture", pbr.get("baseColorTexture"), "srgb"),
+        "metallic_roughness": (
+            "metallicRoughnessTexture",
+            pbr.get("metallicRoughnessTexture"),
+            "linear",
+        ),
+        "normal": ("normalTexture", entry.get("normalTexture"), "linear"),
+    }
+    images = {}
+    for key, (attribute, info, encoding) in slots.items():
+        image = getattr(material, attribute, None)
+        if image is None:
+            if info:
+                log.warning("%s: %s could not be decoded; ignored", path.name, attribute)
+            continue
+        wrap = _gltf_texture_info(header, info, path, attribute)
+        images[key] = _texture_image(image, encoding, wrap, path)
+    for unread in ("emissiveTexture", "occlusionTexture"):
+        if entry.get(unread):
+            log.warning("%s: %s is not read", path.name, unread)
+    if not any(v is not None for v in images.values()):
+        return None
+    scale = float((entry.get("normalTexture") or {}).get("scale", 1.0))
+    return SurfaceTextures(**images, normal_scale=scale)

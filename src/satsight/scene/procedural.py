@@ -18,6 +18,13 @@ Body frame of every generated satellite (metres):
   looking along -x.
 
 Wings turn about their own axis by one solar-array drive angle shared by all wings.
+
+Surfaces (``smooth_normals``, ``textures``; on by default in scenarios): curved parts (dish,
+cylinders, tubes) get crease-angle shading normals (``satsight.scene.normals``, 30
+degrees), so they shade round while box edges stay sharp; solar cells show their cell
+grid, the MLI bus its crinkle and the radiators their strips
+(``satsight.scene.procedural_textures``). The textures are drawn from their own generator,
+``default_rng([seed, 1])``, so they never change the geometry a seed gives.
 """
 
 from __future__ import annotations
@@ -26,8 +33,10 @@ import numpy as np
 import trimesh
 
 from satsight.errors import SatsightError
+from satsight.scene import procedural_textures as pt
 from satsight.scene.materials import FIRST_MATERIALS
-from satsight.scene.mesh import TargetMesh, merge_parts
+from satsight.scene.mesh import PartSurface, TargetMesh, merge_parts
+from satsight.scene.normals import DEFAULT_CREASE_ANGLE_DEG, box_uv
 
 SATELLITE_CLASSES: tuple[str, ...] = (
     "body_mounted",
@@ -104,31 +113,81 @@ def _join(*meshes: trimesh.Trimesh) -> trimesh.Trimesh:
 
 
 class _Parts:
-    """Ordered (name, material, vertices_m, faces) parts with unique names."""
+    """Ordered (name, material, vertices_m, faces, PartSurface | None) parts with unique
+    names; ``textures`` (a generator, or None) switches the parts' textures on."""
 
-    def __init__(self) -> None:
-        self.items: list[tuple[str, str, np.ndarray, np.ndarray]] = []
+    def __init__(self, textures: np.random.Generator | None = None) -> None:
+        self.items: list[tuple] = []
+        self.texture_rng = textures
+        self._cells: dict[tuple[float, float], pt.SurfaceTextures] = {}
 
-    def add(self, name: str, material: str, mesh: trimesh.Trimesh) -> None:
+    def add(
+        self, name: str, material: str, mesh: trimesh.Trimesh, surface: PartSurface | None = None
+    ) -> None:
         if any(name == item[0] for item in self.items) or material not in FIRST_MATERIALS:
             raise ValueError(f"internal: duplicate part '{name}' or bad material '{material}'")
+        if self.texture_rng is None:
+            surface = None
         self.items.append(
-            (name, material, np.array(mesh.vertices, dtype=float), np.array(mesh.faces))
+            (name, material, np.array(mesh.vertices, dtype=float), np.array(mesh.faces), surface)
         )
+
+    def cell_textures(self, pitch_uv_m: tuple[float, float]) -> pt.SurfaceTextures:
+        """The cell tile of this pitch (made once, shared by the panels that use it)."""
+        key = (round(pitch_uv_m[0], 9), round(pitch_uv_m[1], 9))
+        if key not in self._cells:
+            self._cells[key] = pt.solar_cell_textures(pitch_uv_m)
+        return self._cells[key]
+
+
+def _textured(
+    mesh: trimesh.Trimesh, textures, size_uv_m, origin_m, axes=None, pose=None
+) -> tuple[trimesh.Trimesh, PartSurface]:
+    """``mesh`` (moved by ``pose``) with planar texture coordinates taken in its own frame
+    (``satsight.scene.normals.box_uv``) and ``textures``."""
+    uv = box_uv(mesh.vertices, mesh.faces, size_uv_m, origin_m, axes)
+    if pose is not None:
+        if np.linalg.det(pose[:3, :3]) <= 0:  # a mirror would reorder the corners
+            raise ValueError("internal: textured parts take proper rotations only")
+        mesh = mesh.apply_transform(pose)
+    return mesh, PartSurface(corner_uv=uv, textures=textures)
+
+
+def _cell_surface(parts: _Parts, mesh, extent_uv_m, origin_m, axes=None, pose=None):
+    """Solar cells of a panel whose cell area spans ``extent_uv_m`` along (u, v): a whole
+    number of cells (the busbar along u) fills it."""
+    pitch = (
+        pt.cell_pitch_m(extent_uv_m[0], pt.CELL_SIZE_M[0]),
+        pt.cell_pitch_m(extent_uv_m[1], pt.CELL_SIZE_M[1]),
+    )
+    if parts.texture_rng is None:
+        return (mesh if pose is None else mesh.apply_transform(pose)), None
+    return _textured(mesh, parts.cell_textures(pitch), pitch, origin_m, axes, pose)
 
 
 # --- components ------------------------------------------------------------------------------
 def _add_bus(parts: _Parts, rng: np.random.Generator, size_m: np.ndarray) -> None:
     """MLI bus box, aluminium deck at +z, radiators on +/-x, black crinkle at -z."""
     bx, by, bz = size_m
-    parts.add("bus_mli", str(rng.choice(["mli_gold", "mli_silver"])), _box(size_m, (0, 0, 0)))
+    bus = _box(size_m, (0, 0, 0))
+    surface = None
+    if parts.texture_rng is not None:
+        crinkle = pt.mli_crinkle_textures(parts.texture_rng)
+        tile = (pt.MLI_TILE_M, pt.MLI_TILE_M)
+        bus, surface = _textured(bus, crinkle, tile, -0.5 * np.asarray(size_m))
+    parts.add("bus_mli", str(rng.choice(["mli_gold", "mli_silver"])), bus, surface)
     deck = _box((bx, by, _DECK_THICKNESS_M), (0, 0, 0.5 * bz + 0.5 * _DECK_THICKNESS_M))
     parts.add("instrument_deck", "brushed_aluminium", deck)
     rad_z = (0.05 * bz, 0.45 * bz)
     for k, sign in enumerate((1.0, -1.0), start=1):
         centre = (sign * (0.5 * bx + 0.0075), 0.0, 0.5 * sum(rad_z))
         panel = _box((0.015, 0.8 * by, rad_z[1] - rad_z[0]), centre)
-        parts.add(f"radiator_{k}", "white_paint", panel)
+        surface = None
+        if parts.texture_rng is not None:
+            period = (pt.RADIATOR_STRIP_PERIOD_M, pt.RADIATOR_STRIP_PERIOD_M)
+            origin = (0.0, -0.4 * by, rad_z[0])
+            panel, surface = _textured(panel, pt.radiator_textures(), period, origin)
+        parts.add(f"radiator_{k}", "white_paint", panel, surface)
     crinkle = _box((0.9 * bx, 0.9 * by, 0.01), (0, 0, -0.5 * bz - 0.005))
     parts.add("bus_crinkle", "black_crinkle", crinkle)
 
@@ -236,7 +295,10 @@ def _wing_panel(
     cells = _box(
         (_CELL_THICKNESS_M, length_m - 0.04, width_m - 0.04), (0.5 * _CELL_THICKNESS_M, y_mid, 0)
     )
-    parts.add(f"wing_{index}_cells", "solar_cell", cells.apply_transform(pose))
+    area = (length_m - 0.04, width_m - 0.04)  # cell area along y' (u) and z' (v)
+    origin = (0.0, root_m + 0.02, -0.5 * area[1])
+    cells, surface = _cell_surface(parts, cells, area, origin, pose=pose)
+    parts.add(f"wing_{index}_cells", "solar_cell", cells, surface)
     parts.add(f"wing_{index}_substrate", "panel_substrate", substrate.apply_transform(pose))
 
 
@@ -311,15 +373,24 @@ def _add_body_cells(parts: _Parts, size_m: np.ndarray) -> None:
     bx, by, bz = size_m
     for k, sign in enumerate((1.0, -1.0), start=1):
         cells = _box((0.9 * bx, 0.01, 0.85 * bz), (0, sign * (0.5 * by + 0.005), 0))
-        parts.add(f"body_cells_{k}", "solar_cell", cells)
+        area = (0.9 * bx, 0.85 * bz)  # along x (u) and z (v)
+        origin = (-0.45 * bx, 0.0, -0.425 * bz)
+        cells, surface = _cell_surface(parts, cells, area, origin)
+        parts.add(f"body_cells_{k}", "solar_cell", cells, surface)
 
 
-def generate_satellite(satellite_class: str, seed: int) -> TargetMesh:
+def generate_satellite(
+    satellite_class: str, seed: int, smooth_normals: bool = False, textures: bool = False
+) -> TargetMesh:
     """A random satellite of ``satellite_class`` (one of ``SATELLITE_CLASSES``), from ``seed``.
 
     The same (class, seed) always gives the same mesh (``np.random.default_rng(seed)``). The
     largest side of the bounding box lies in [2, 10] m. The mesh is in the body frame of the
     module docstring; parts are named ``bus_mli``, ``wing_<k>_cells``, ``antenna_dish``, ...
+    smooth_normals: crease-angle shading normals on curved parts (else flat triangles).
+    textures: cell grids, MLI crinkle and radiator strips (same geometry either way). Both
+    are off here, so that the bare call keeps giving the flat, untextured mesh; scenarios
+    switch them on by default (``target.procedural.smooth_normals`` / ``textures``).
     """
     if satellite_class not in SATELLITE_CLASSES:
         raise SatsightError(
@@ -329,7 +400,7 @@ def generate_satellite(satellite_class: str, seed: int) -> TargetMesh:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise SatsightError(f"seed must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(int(seed))
-    parts = _Parts()
+    parts = _Parts(np.random.default_rng([int(seed), 1]) if textures else None)
     if satellite_class == "body_mounted":
         size = np.array([rng.uniform(1.4, 2.6), rng.uniform(1.4, 2.6), rng.uniform(1.8, 3.0)])
     else:
@@ -347,7 +418,12 @@ def generate_satellite(satellite_class: str, seed: int) -> TargetMesh:
             look_minus_x = _rot("y", -0.5 * np.pi)
             _add_dish(parts, rng, rng.uniform(2.0, 3.5), _pose(look_minus_x, vertex), 0.03, 72)
     items = _rescaled(parts.items)
-    return merge_parts(items, materials=FIRST_MATERIALS, name=f"{satellite_class}-seed{seed}")
+    return merge_parts(
+        items,
+        materials=FIRST_MATERIALS,
+        name=f"{satellite_class}-seed{seed}",
+        crease_angle_deg=DEFAULT_CREASE_ANGLE_DEG if smooth_normals else None,
+    )
 
 
 def _rescaled(items):
@@ -357,4 +433,4 @@ def _rescaled(items):
     scale = float(np.clip(largest, MIN_EXTENT_M, MAX_EXTENT_M)) / largest
     if scale == 1.0:
         return items
-    return [(n, m, v * scale, f) for n, m, v, f in items]
+    return [(n, m, v * scale, f, *rest) for n, m, v, f, *rest in items]
