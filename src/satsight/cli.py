@@ -285,7 +285,8 @@ def camera(config: Path | None, out_dir: Path) -> None:
     from satsight.config.scenario import load_scenario
     from satsight.pipeline import build_sensor
     from satsight.sensor.camera_report import SNR_LIMIT, camera_report
-    from satsight.sensor.optics import band_wavelengths_m, plot_system_mtf
+    from satsight.sensor.mtf import band_wavelengths_m
+    from satsight.sensor.mtf_plot import plot_system_mtf
 
     scenario = load_scenario(config or example_scenario_path())
     sensor = build_sensor(scenario)

@@ -44,6 +44,7 @@ from satsight.dataset.manifest import (
     scenario_sha256,
     write_manifest,
 )
+from satsight.dataset.preview import PreviewStretch
 from satsight.dataset.reader import COMPLETE_NAME, MANIFEST_NAME, is_dataset, read_json
 from satsight.errors import SatsightError
 from satsight.pipeline import FrameEngine, RenderedFrame
@@ -337,6 +338,7 @@ def write_frame(
     """Write a sensed frame's files; its journal record and stage times (s)."""
     t0 = time.perf_counter()
     outputs = engine.scenario.outputs
+    preview = PreviewStretch.of_outputs(outputs)
     record = sensed.record
     files, crop_files, checksums = write_frame_files(
         root,
@@ -346,6 +348,7 @@ def write_frame(
         sensed.crop_box,
         outputs.crop is None or outputs.crop.full_frame,
         encoders,
+        preview,
     )
     record["files"] = files
     if "crop" in record:
@@ -356,7 +359,7 @@ def write_frame(
         if source is not None:
             arrays = sensed.arrays.window(sensed.crop_box) if source[1] else sensed.arrays
             dn = arrays.dn_image
-            keep_thumbnail(root, record, dn.dn, dn.bias_dn, dn.full_well_dn)
+            keep_thumbnail(root, record, dn.dn, dn.bias_dn, dn.full_well_dn, preview)
     return record, {"sensor": sensed.sensor_s, "files": time.perf_counter() - t0}
 
 

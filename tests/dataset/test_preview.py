@@ -2,18 +2,25 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
+from satsight.config.outputs import DEFAULT_ASINH_SOFTENING_DN, OutputsConfig
 from satsight.dataset.preview import (
+    DN_PREVIEW_STRETCH,
     PREVIEW_GAMMA,
+    PreviewStretch,
     crop_box_xyxy_px,
+    dn_preview_asinh_uint8,
     dn_preview_uint8,
     thumbnail,
 )
 from satsight.errors import SatsightError
+from satsight.sensor.detector import DetectorParameters
 
 
 @pytest.fixture
@@ -48,6 +55,112 @@ def test_preview_is_monotonic_in_dn(rng) -> None:
 def test_preview_needs_full_well_above_bias() -> None:
     with pytest.raises(SatsightError, match="must exceed bias_dn"):
         dn_preview_uint8(np.zeros((2, 2), np.uint16), 1000.0, 1000.0)
+
+
+# The gamma stretch of every DN code, as released before the stretch became a choice:
+# SHA-256 of the (256, 256) uint8 image of DN 0 ... 65535 for (bias_dn, full_well_dn).
+GAMMA_LUT_SHA256 = {
+    (1000.0, 61000.0): "e01c0b5e2e6082cd40564cb752686d7dc7424a12bed9f392f4e5818928ad99d9",
+    (1000.0, 1000.0 + 350000 / 5.833): (
+        "1a4a8c89e48f978d3a247b59530b09d96b99184d4ec928cc2a378761fb63624d"
+    ),
+    (0.0, 65535.0): "22fb0743bbf2af07123155d27ea8b82a64cf5232cb68d18b9aed3ebb1986b53d",
+}
+
+
+@pytest.mark.parametrize(("bias", "full_well"), list(GAMMA_LUT_SHA256))
+def test_gamma_stretch_is_byte_identical_to_the_released_one(bias, full_well) -> None:
+    every_code = np.arange(65536, dtype=np.uint16).reshape(256, 256)
+    for image in (
+        dn_preview_uint8(every_code, bias, full_well),
+        PreviewStretch("gamma").apply(every_code, bias, full_well),
+    ):
+        digest = hashlib.sha256(image.tobytes()).hexdigest()
+        assert digest == GAMMA_LUT_SHA256[(bias, full_well)]
+
+
+def _star_and_target_frame(rng: np.random.Generator, star_peak_e: float):
+    """A 96 x 96 DN frame of the default detector: read noise everywhere, a star (Gaussian,
+    sigma 0.7 px, peak ``star_peak_e`` electrons) at (20, 20) and a target whose signal
+    rises linearly from 20 % to 100 % of full well along x over columns 40-87, rows 40-79.
+    Returns (dn, detector, the target's noiseless signal in electrons (96, 96))."""
+    detector = DetectorParameters()
+    y, x = np.mgrid[0:96, 0:96].astype(np.float64)
+    signal_e = star_peak_e * np.exp(-((x - 20.0) ** 2 + (y - 20.0) ** 2) / (2 * 0.7**2))
+    target_e = np.zeros_like(signal_e)
+    ramp = np.linspace(0.2, 1.0, 48) * detector.full_well_e
+    target_e[40:80, 40:88] = ramp[None, :]
+    signal_e += target_e
+    electrons = signal_e + rng.normal(0.0, detector.read_noise_e, signal_e.shape)
+    dn = np.rint(detector.bias_dn + electrons / detector.conversion_gain_e_per_dn)
+    dn = np.clip(dn, 0, detector.adc_max_dn).astype(np.uint16)
+    return dn, detector, target_e
+
+
+def test_asinh_shows_a_faint_star_and_keeps_the_targets_bright_end(rng) -> None:
+    """A star 300 e- above the bias at its peak (60 read-noise sigma, 51 DN) reaches at least
+    64/255 with the asinh stretch (76 expected: 255 asinh(51.4 / 5) / asinh(60003 / 5)),
+    where the gamma stretch leaves it at 10/255; the target's bright end (>= 90 % of full
+    well) shows at 250 or more, and only at full well at 255 (not clipped below it); the
+    read noise stays in the darkest levels (99th percentile of the sky <= 16/255)."""
+    dn, detector, target_e = _star_and_target_frame(rng, star_peak_e=300.0)
+    bias, full_well = detector.bias_dn, detector.full_well_dn
+    asinh = dn_preview_asinh_uint8(dn, bias, full_well)
+    gamma = dn_preview_uint8(dn, bias, full_well)
+    star_level = 255 * math.asinh(300 / detector.conversion_gain_e_per_dn / 5.0)
+    star_level /= math.asinh((full_well - bias) / 5.0)
+    assert asinh[20, 20] >= 64 and abs(int(asinh[20, 20]) - star_level) <= 6
+    assert gamma[20, 20] <= 15  # the problem the asinh stretch solves
+    bright = target_e >= 0.9 * detector.full_well_e
+    assert asinh[bright].min() >= 250
+    below_full = (target_e > 0) & (target_e <= 0.97 * detector.full_well_e)
+    assert asinh[below_full].max() < 255
+    assert np.all(np.diff(asinh[60, 40:88].astype(int)) >= -1)  # rises with the ramp
+    sky = np.ones(dn.shape, dtype=bool)
+    sky[10:31, 10:31] = False
+    sky[40:80, 40:88] = False
+    assert np.percentile(asinh[sky], 99) <= 16
+    assert asinh[sky].mean() < 3.0
+
+
+def test_asinh_stretch_closed_form_and_monotonic(rng) -> None:
+    bias, full, beta = 1000.0, 61000.0, 5.0
+    dn = np.array([[0, 1000, 1005, 1050, 31000, 61000, 65535]], dtype=np.uint16)
+    span = full - bias
+    expected = [0, 0] + [
+        round(255 * math.asinh(x / beta) / math.asinh(span / beta)) for x in (5, 50, 30000)
+    ]
+    expected += [255, 255]
+    np.testing.assert_array_equal(dn_preview_asinh_uint8(dn, bias, full, beta)[0], expected)
+    codes = np.sort(rng.integers(0, 65536, size=5000)).astype(np.uint16)
+    assert np.all(np.diff(dn_preview_asinh_uint8(codes, bias, full).astype(int)) >= 0)
+    with pytest.raises(SatsightError, match="positive number of DN"):
+        dn_preview_asinh_uint8(dn, bias, full, 0.0)
+    with pytest.raises(SatsightError, match="must exceed bias_dn"):
+        dn_preview_asinh_uint8(dn, bias, bias)
+
+
+def test_outputs_choose_the_stretch_and_labels_name_it() -> None:
+    default = OutputsConfig()
+    assert default.preview_stretch == "asinh"
+    assert default.preview_softening_dn == DEFAULT_ASINH_SOFTENING_DN
+    stretch = PreviewStretch.of_outputs(OutputsConfig(preview_softening_dn=8.0))
+    assert stretch == PreviewStretch("asinh", 8.0)
+    header = stretch.header()
+    assert header["stretch"] == "asinh" and header["softening_dn"] == 8.0
+    assert "asinh(x / 8)" in header["formula"]
+    assert PreviewStretch.from_header(header) == stretch
+    gamma = PreviewStretch.of_outputs(OutputsConfig(preview_stretch="gamma"))
+    assert gamma.header() == {"stretch": "gamma", "formula": DN_PREVIEW_STRETCH, "gamma": 2.2}
+    assert PreviewStretch.from_header(gamma.header()).name == "gamma"
+    # Datasets written before the choice hold only the gamma formula.
+    assert PreviewStretch.from_header({"stretch": DN_PREVIEW_STRETCH}).name == "gamma"
+    assert PreviewStretch.from_header(None).name == "gamma"
+    for bad in ({"preview_stretch": "log"}, {"preview_softening_dn": 0}):
+        with pytest.raises(ValidationError):
+            OutputsConfig(**bad)
+    with pytest.raises(SatsightError, match="unknown preview stretch"):
+        PreviewStretch("log")  # type: ignore[arg-type]
 
 
 # --- crop_box_xyxy_px ----------------------------------------------------------------------

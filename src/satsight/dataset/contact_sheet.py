@@ -1,7 +1,10 @@
 """The dataset's contact sheet: thumbnails of up to 36 frames spread over the dataset.
 
 A frame's thumbnail is the target's neighbourhood in its DN image (above the bias; or its
-8-bit preview, or its crop's, whichever the outputs hold), scaled to its own maximum. The
+8-bit preview, or its crop's, whichever the outputs hold), scaled to its own maximum with
+display gamma 2.2: the sheet keeps this stretch of its own, whatever the previews' stretch
+(``outputs.preview_stretch``), because it shows the target, each frame at its best, in
+thumbnails whose box average dilutes the stars anyway. The
 frames on the sheet are known before the run, so their thumbnails are kept while they are
 rendered (in ``.thumbnails/`` inside the dataset, removed when the sheet is drawn) and the
 sheet costs no decoding of full frames; a thumbnail that is missing there (a resumed run)
@@ -20,8 +23,8 @@ import numpy as np
 from satsight.dataset.image_files import read_png
 from satsight.dataset.journal import write_bytes_atomic
 from satsight.dataset.preview import (
+    PreviewStretch,
     crop_box_xyxy_px,
-    dn_preview_uint8,
     thumbnail,
     write_contact_sheet,
 )
@@ -69,14 +72,26 @@ def _cache_path(root: Path, frame_index: int) -> Path:
     return Path(root) / THUMBNAIL_FOLDER / f"frame_{frame_index:06d}.npy"
 
 
-def keep_thumbnail(root: Path, record: dict, dn: np.ndarray, bias_dn: float, full_well_dn):
+def keep_thumbnail(
+    root: Path,
+    record: dict,
+    dn: np.ndarray,
+    bias_dn: float,
+    full_well_dn: float,
+    preview: PreviewStretch | None = None,
+) -> None:
     """Keep the thumbnail of a frame being written (``dn``: the image it is made of, the
-    full frame's or the crop's as ``thumbnail_source`` says), for the contact sheet."""
+    full frame's or the crop's as ``thumbnail_source`` says), for the contact sheet.
+    preview: the stretch of the frame's 8-bit preview (None: ``PreviewStretch()``), so that
+    a thumbnail made from the preview equals the one a resumed run makes from its file."""
     source = thumbnail_source(record)
     if source is None:
         return
     key, _, bbox = source
-    image = dn if key == "dn_png16" else dn_preview_uint8(dn, bias_dn, full_well_dn)
+    if key == "dn_png16":
+        image = dn
+    else:
+        image = (preview or PreviewStretch()).apply(dn, bias_dn, full_well_dn)
     buffer = io.BytesIO()
     np.save(buffer, frame_thumbnail(image, key, bbox, bias_dn))
     path = _cache_path(root, record["frame_index"])

@@ -2,39 +2,130 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from satsight.config.outputs import (
+    DEFAULT_ASINH_SOFTENING_DN,
+    DEFAULT_PREVIEW_STRETCH,
+    PREVIEW_STRETCHES,
+    OutputsConfig,
+    PreviewStretchName,
+)
 from satsight.errors import SatsightError
 
 # Display stretch of the contact sheet: value = (L / L_max) ** (1 / 2.2).
 PREVIEW_GAMMA = 2.2
 
-
-#: The stretch of the 8-bit previews, as written into labels.json.
+#: The gamma stretch of the 8-bit previews, as written into labels.json.
 DN_PREVIEW_STRETCH = (
     "preview = round(255 * clip((DN - bias_dn) / (full_well_dn - bias_dn), 0, 1) ** (1 / 2.2)):"
     " black at the bias, white at full well, gamma 2.2"
 )
+#: The asinh stretch of the 8-bit previews, as written into labels.json ({beta}: softening).
+DN_PREVIEW_ASINH_STRETCH = (
+    "preview = round(255 * asinh(x / {beta:g}) / asinh(X / {beta:g})) with x = clip(DN - "
+    "bias_dn, 0, X), X = full_well_dn - bias_dn: black at the bias, white at full well, linear "
+    "below the softening of {beta:g} DN and logarithmic above it (Lupton et al. 2004, PASP "
+    "116, 133)"
+)
 
 
-def dn_preview_uint8(dn: np.ndarray, bias_dn: float, full_well_dn: float) -> np.ndarray:
-    """The 8-bit display image of a raw DN frame (``DN_PREVIEW_STRETCH``).
-
-    dn: (H, W) uint16 raw digital numbers. bias_dn: the detector's offset (black).
-    full_well_dn: the mean output at full well (white). Returns (H, W) uint8.
-    """
+def _check_span(bias_dn: float, full_well_dn: float) -> float:
     span = float(full_well_dn) - float(bias_dn)
     if span <= 0:
         raise SatsightError(
             f"full_well_dn ({full_well_dn}) must exceed bias_dn ({bias_dn}); check the "
             "detector's full well, gain and bias"
         )
+    return span
+
+
+def dn_preview_uint8(dn: np.ndarray, bias_dn: float, full_well_dn: float) -> np.ndarray:
+    """The 8-bit display image of a raw DN frame, gamma stretch (``DN_PREVIEW_STRETCH``).
+
+    dn: (H, W) uint16 raw digital numbers. bias_dn: the detector's offset (black).
+    full_well_dn: the mean output at full well (white). Returns (H, W) uint8.
+    """
+    span = _check_span(bias_dn, full_well_dn)
     lut = np.arange(65536, dtype=np.float64)
     lut = np.clip((lut - float(bias_dn)) / span, 0.0, 1.0) ** (1.0 / PREVIEW_GAMMA)
     lut = np.rint(255.0 * lut).astype(np.uint8)
     return lut[np.asarray(dn, dtype=np.uint16)]
+
+
+def dn_preview_asinh_uint8(
+    dn: np.ndarray,
+    bias_dn: float,
+    full_well_dn: float,
+    softening_dn: float = DEFAULT_ASINH_SOFTENING_DN,
+) -> np.ndarray:
+    """The 8-bit display image of a raw DN frame, asinh stretch (``DN_PREVIEW_ASINH_STRETCH``).
+
+    dn: (H, W) uint16 raw digital numbers. bias_dn: black. full_well_dn: white.
+    softening_dn: beta, DN above the bias where the stretch turns from linear to
+    logarithmic (Lupton et al. 2004, PASP 116, 133). Returns (H, W) uint8. Faint stars a few
+    hundred electrons above the bias and the target near full well both show.
+    """
+    span = _check_span(bias_dn, full_well_dn)
+    beta = float(softening_dn)
+    if not (beta > 0 and np.isfinite(beta)):
+        raise SatsightError(f"the asinh softening must be a positive number of DN, got {beta}")
+    lut = np.clip(np.arange(65536, dtype=np.float64) - float(bias_dn), 0.0, span)
+    lut = np.arcsinh(lut / beta) / np.arcsinh(span / beta)
+    lut = np.rint(255.0 * lut).astype(np.uint8)
+    return lut[np.asarray(dn, dtype=np.uint16)]
+
+
+@dataclass(frozen=True)
+class PreviewStretch:
+    """How raw DN become the 8-bit previews: black at the bias, white at full well.
+
+    name: ``"asinh"`` (``dn_preview_asinh_uint8``) or ``"gamma"`` (``dn_preview_uint8``).
+    softening_dn: the asinh softening beta (DN above the bias); unused by gamma.
+    """
+
+    name: PreviewStretchName = DEFAULT_PREVIEW_STRETCH
+    softening_dn: float = DEFAULT_ASINH_SOFTENING_DN
+
+    def __post_init__(self) -> None:
+        if self.name not in PREVIEW_STRETCHES:
+            raise SatsightError(
+                f"unknown preview stretch {self.name!r}; choose one of "
+                f"{', '.join(PREVIEW_STRETCHES)}"
+            )
+
+    def apply(self, dn: np.ndarray, bias_dn: float, full_well_dn: float) -> np.ndarray:
+        """(H, W) uint8 display image of the (H, W) uint16 raw DN ``dn``."""
+        if self.name == "gamma":
+            return dn_preview_uint8(dn, bias_dn, full_well_dn)
+        return dn_preview_asinh_uint8(dn, bias_dn, full_well_dn, self.softening_dn)
+
+    def header(self) -> dict:
+        """The stretch as labels.json's ``preview`` entry: name, formula, parameters."""
+        if self.name == "gamma":
+            return {"stretch": "gamma", "formula": DN_PREVIEW_STRETCH, "gamma": PREVIEW_GAMMA}
+        return {
+            "stretch": "asinh",
+            "formula": DN_PREVIEW_ASINH_STRETCH.format(beta=self.softening_dn),
+            "softening_dn": self.softening_dn,
+        }
+
+    @classmethod
+    def of_outputs(cls, outputs: OutputsConfig) -> PreviewStretch:
+        """The stretch a scenario's ``outputs:`` block chooses."""
+        return cls(outputs.preview_stretch, outputs.preview_softening_dn)
+
+    @classmethod
+    def from_header(cls, entry: object) -> PreviewStretch:
+        """The stretch a dataset's ``preview`` entry names; gamma for datasets written before
+        the choice existed (their entry holds only the gamma formula)."""
+        if isinstance(entry, dict) and entry.get("stretch") == "asinh":
+            softening = entry.get("softening_dn", DEFAULT_ASINH_SOFTENING_DN)
+            return cls("asinh", float(softening))
+        return cls("gamma")
 
 
 def crop_box_xyxy_px(

@@ -1,9 +1,11 @@
 """``satsight stats``: what a dataset holds, counted and binned from its labels.
 
 Counts per distance interval, per target class and per visibility flag; histograms of the
-range (log bins), phase angle, visible pixel fraction, exposure time and saturated pixel
-count. Everything comes from the frame records (no image is read); ``stats.json`` holds the
-numbers and ``stats.png`` draws them.
+range (log bins), phase angle, visible pixel fraction, exposure time, saturated pixel count
+and the target's V-equivalent magnitude. Everything comes from the frame records (no image
+is read); ``stats.json`` holds the numbers and ``stats.png`` draws them. Frames without a
+value (a target that sends no light has no magnitude; datasets written before a label
+existed lack it) are counted as ``missing``.
 
 The records are read once, one at a time: counts are kept per group, and the histograms'
 inputs as a few floats per frame (``array('d')``), so that a dataset of 10^6 frames is
@@ -34,6 +36,7 @@ DISTRIBUTIONS = {
     "visible_pixel_fraction": ("1", "linear", "visible pixel fraction (of the image)"),
     "exposure_time_s": ("s", "linear", "exposure time (s)"),
     "saturated_pixel_count": ("pixels", "linear", "saturated pixels (count)"),
+    "target_v_magnitude_equivalent": ("mag", "linear", "target V-equivalent magnitude"),
 }
 MAX_BINS = 30
 PHASE_BIN_DEG = 10.0

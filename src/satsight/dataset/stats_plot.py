@@ -1,4 +1,4 @@
-"""The figure of ``satsight stats``: five histograms and the frames per distance interval."""
+"""The figure of ``satsight stats``: the histograms and the frames per distance interval."""
 
 from __future__ import annotations
 
@@ -8,10 +8,11 @@ import numpy as np
 
 
 def plot_stats(stats: dict, path: Path) -> Path:
-    """Draw ``stats`` (from ``dataset_stats``) as a 2 x 3 grid of panels, saved as PNG.
+    """Draw ``stats`` (from ``dataset_stats``) as a grid of panels in two rows, saved as PNG.
 
-    Panels: range (log axis, m), phase angle (deg), visible pixel fraction, exposure time
-    (s), saturated pixel count, and frames per distance interval. Returns ``path``.
+    Panels: one per histogram (range on a log axis, m; phase angle, deg; visible pixel
+    fraction; exposure time, s; saturated pixel count; target V-equivalent magnitude), then
+    frames per distance interval. Returns ``path``.
     """
     import matplotlib
 
@@ -19,7 +20,10 @@ def plot_stats(stats: dict, path: Path) -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator
 
-    fig, axes = plt.subplots(2, 3, figsize=(15, 8.5), layout="constrained")
+    cols = -(-(len(stats["histograms"]) + 1) // 2)
+    fig, axes = plt.subplots(2, cols, figsize=(5 * cols, 8.5), layout="constrained")
+    for ax in axes.ravel()[len(stats["histograms"]) : -1]:
+        ax.axis("off")
     for ax, hist in zip(axes.ravel(), stats["histograms"].values(), strict=False):
         ax.set_xlabel(hist["label"])
         ax.set_ylabel("frames")

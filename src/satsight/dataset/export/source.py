@@ -23,7 +23,7 @@ import numpy as np
 from satsight.config.outputs import OUTPUT_FILE_KEYS
 from satsight.dataset.image_files import read_exr, read_png
 from satsight.dataset.journal import JournalFrames
-from satsight.dataset.preview import dn_preview_uint8
+from satsight.dataset.preview import PreviewStretch
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
 
@@ -202,15 +202,17 @@ def require_image(frame: ExportFrame, purpose: str) -> Path:
 def read_gray8(frame: ExportFrame, header: dict, purpose: str) -> tuple[np.ndarray, str]:
     """The frame's 8-bit grey image and the file key it came from.
 
-    The 8-bit preview when the dataset has it; otherwise the raw DN with the preview's
-    stretch (black at the bias, white at full well, gamma 2.2: ``dn_preview_uint8``).
+    The 8-bit preview when the dataset has it; otherwise the raw DN with the previews'
+    stretch as labels.json's ``preview`` entry names it (black at the bias, white at full
+    well; asinh or gamma 2.2, gamma for datasets from before the choice existed).
     """
     path = require_image(frame, purpose)
     if "preview_png8" in frame.files:
         return _grey(read_png(path), frame, np.uint8), "preview_png8"
     dn = _grey(read_png(path), frame, np.uint16)
     bias, full_well = dn_stretch(header)
-    return dn_preview_uint8(dn, bias, full_well), "dn_png16"
+    stretch = PreviewStretch.from_header(header.get("preview"))
+    return stretch.apply(dn, bias, full_well), "dn_png16"
 
 
 def read_mask(frame: ExportFrame, purpose: str) -> np.ndarray:
