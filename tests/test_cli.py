@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from scipy.ndimage import binary_dilation, binary_erosion
+from scipy.ndimage import binary_dilation, binary_erosion, maximum_filter
 
 from cli_runner import run_satsight
 from satsight.camera.pinhole import PinholeCamera
@@ -36,6 +36,7 @@ FILE_KEYS = (
     "normals_exr",
     "object_mask_png",
     "part_mask_png16",
+    "background_mask_png",
 )
 TOP_LEVEL_KEYS = {
     "format",
@@ -87,7 +88,7 @@ def test_demo_writes_six_frames_and_closes_the_dataset(demo_dir: Path, labels) -
     assert not [p for p in demo_dir.rglob(".*") if ".tmp-" in p.name]
     for folder in ("images", "previews", "radiance", "depth", "normals", "masks"):
         assert len(list((demo_dir / folder).iterdir())) == FRAME_COUNT * (
-            2 if folder == "masks" else 1
+            3 if folder == "masks" else 1
         )
 
 
@@ -163,6 +164,23 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
     # radiance is at most albedo E / pi (albedo <= 1, E the in-band solar irradiance).
     off = radiance[~on]
     assert off.min() >= 0.0 and off.max() <= 1400.0 / math.pi
+    # The background mask: 0 on the target, a body (1 Earth, 2 Moon) under every lit pixel
+    # off it, and the Earth's and Moon's pixels those the exposure labels count.
+    background = read_png(demo_dir / files["background_mask_png"])
+    assert background.dtype == np.uint8 and background.shape == (HEIGHT_PX, WIDTH_PX)
+    assert set(np.unique(background).tolist()) <= {0, 1, 2}
+    assert not background[on].any()
+    assert background[~on][off.max(axis=1) > 0].all()
+    regions = frame["sensor"]["regions"]
+    assert regions["target"]["pixel_count"] == frame["object_pixel_count"]
+    for value, name in ((1, "earth"), (2, "moon")):
+        assert regions[name]["pixel_count"] == np.count_nonzero(background == value)
+        assert regions[name]["saturated_pixel_count"] <= regions[name]["pixel_count"]
+    assert (
+        sum(r["saturated_pixel_count"] for r in regions.values())
+        <= frame["sensor"]["saturated_pixel_count"]
+    )
+    _check_photometry(labels, frame, radiance, on)
     _check_dn_image(demo_dir, labels, frame, radiance, on)
     del radiance
 
@@ -210,6 +228,36 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
     )
 
 
+def _check_photometry(labels: dict, frame: dict, radiance: np.ndarray, on: np.ndarray) -> None:
+    """The target's in-band irradiance at the camera: the sum of the in-band radiance times
+    each pixel's solid angle (p / f)^2 cos^3(theta) over the pixels whose footprint meets
+    the target's projected box, but for those near the Earth's disc and not near the target;
+    its V-equivalent magnitude -26.76 - 2.5 log10(E / E_sun) with the Sun at 1 AU."""
+    corners = np.array(frame["keypoints_px"][:8])
+    x0, y0 = np.floor(corners.min(axis=0) + 0.5).astype(int)
+    x1, y1 = np.floor(corners.max(axis=0) + 0.5).astype(int) + 1
+    window = np.s_[y0:y1, x0:x1]
+    summed = np.ones((y1 - y0, x1 - x0), dtype=bool)
+    if radiance[~on].any():  # the Earth is drawn
+        # Its pixels: lit, away from the target's mask and ring. The pixels within one pixel
+        # of them are left out, unless within one pixel of the mask.
+        square = np.ones((3, 3), dtype=bool)
+        ring = binary_dilation(on, structure=square)
+        earth = radiance.max(axis=2) > 0
+        earth &= ~ring
+        summed = (ring | ~binary_dilation(earth, structure=square))[window]
+    K = np.array(labels["camera"]["K"])
+    v, u = np.mgrid[window]
+    cos3 = (1.0 + ((u - K[0, 2]) / K[0, 0]) ** 2 + ((v - K[1, 2]) / K[1, 1]) ** 2) ** -1.5
+    band = radiance[window].astype(np.float64) @ np.array(labels["sensor"]["channel_weights_rgb"])
+    p_over_f = labels["camera"]["pixel_pitch_m"] / labels["camera"]["focal_length_m"]
+    irradiance = float(np.sum(np.where(summed, band, 0.0) * cos3)) * p_over_f**2
+    assert irradiance > 0
+    assert frame["target_irradiance_w_m2"] == pytest.approx(irradiance, rel=1e-5)
+    magnitude = -26.76 - 2.5 * math.log10(irradiance / frame["sun_irradiance_w_m2"])
+    assert frame["target_v_magnitude_equivalent"] == pytest.approx(magnitude, abs=1e-5)
+
+
 def _check_dn_image(
     demo_dir: Path, labels: dict, frame: dict, radiance: np.ndarray, on: np.ndarray
 ) -> None:
@@ -225,10 +273,11 @@ def _check_dn_image(
     assert exposure_s > 0
     gain = detector["conversion_gain_e_per_dn"]
     bias = detector["bias_dn"]
-    # Empty sky beyond the PSF's reach (its kernel is 15 px wide) of the target and of the
+    # Empty sky beyond the blur's reach (the frame kernel's radius) of the target and of the
     # Earth or Moon behind it: bias plus read noise (dark current over ms is ~1e-6 e-).
     lit = on | (radiance.max(axis=2) > 0)
-    sky = dn[~binary_dilation(lit, iterations=8)].astype(np.float64)
+    reach_px = sensor["frame_kernel"]["margin_px"]
+    sky = dn[~maximum_filter(lit, size=2 * reach_px + 1)].astype(np.float64)
     read_sigma_dn = math.hypot(detector["read_noise_e"] / gain, math.sqrt(1 / 12))
     if sky.size >= 1000:  # frames where the Earth fills the background have no empty sky
         sem = read_sigma_dn / math.sqrt(sky.size)

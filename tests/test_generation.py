@@ -18,13 +18,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from scipy.ndimage import binary_dilation
 
 from cli_runner import run_satsight
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.image_files import read_exr, read_png
 from satsight.dataset.journal import read_journal
 from satsight.dataset.merge import merge_shards
+from satsight.dataset.preview import PreviewStretch, dn_preview_uint8
 from satsight.dataset.reader import open_dataset
+from satsight.dataset.validate import validate_dataset
 from satsight.errors import SatsightError
 from satsight.generation import Shard, StopFlag, generate_dataset
 
@@ -349,7 +352,12 @@ def test_lean_outputs_write_dn_and_masks_only_with_the_same_labels(
     generate_dataset(scenario, out)
     lean, full = open_dataset(out), open_dataset(reference)
     for a, b in zip(lean.frames, full.frames, strict=True):
-        assert set(a["files"]) == {"dn_png16", "object_mask_png", "part_mask_png16"}
+        assert set(a["files"]) == {
+            "dn_png16",
+            "object_mask_png",
+            "part_mask_png16",
+            "background_mask_png",
+        }
         for key in a["files"]:
             assert (out / a["files"][key]).read_bytes() == (
                 reference / b["files"][key]
@@ -385,6 +393,75 @@ def test_crop_files_are_the_full_frame_cut_with_shifted_intrinsics(reference: Pa
                 assert np.floor(crop["keypoints_px"][-1][axis] + 0.5) == CROP_PX // 2
         mask = read_png(dataset.path(frame, "object_mask_png", crop=True)) > 0
         assert int(mask.sum()) == crop["object_pixel_count"]
+
+
+# --- previews and photometric labels ------------------------------------------------------
+def test_previews_take_the_scenarios_stretch_and_the_manifest_names_it(
+    tmp_path: Path, reference: Path
+) -> None:
+    """asinh by default (the DN images are the same whatever the stretch); gamma on demand,
+    byte for byte the gamma stretch of the DN."""
+    gamma_out = tmp_path / "gamma"
+    generate_dataset(
+        parse_scenario(scenario_dict(files=["dn", "preview"], preview_stretch="gamma")),
+        gamma_out,
+    )
+    for root, name in ((reference, "asinh"), (gamma_out, "gamma")):
+        dataset = open_dataset(root)
+        entry = dataset.header["preview"]
+        assert entry["stretch"] == name and entry["formula"]
+        stretch = PreviewStretch.from_header(entry)
+        assert stretch.name == name
+        detector = dataset.header["sensor"]["detector"]
+        bias = detector["bias_dn"]
+        full_well = bias + detector["full_well_e"] / detector["conversion_gain_e_per_dn"]
+        for frame in dataset.frames:
+            dn = read_png(dataset.path(frame, "dn_png16"))
+            preview = read_png(dataset.path(frame, "preview_png8"))
+            np.testing.assert_array_equal(preview, stretch.apply(dn, bias, full_well))
+            if name == "gamma":
+                np.testing.assert_array_equal(preview, dn_preview_uint8(dn, bias, full_well))
+                reference_dn = reference / frame["files"]["dn_png16"]
+                assert reference_dn.read_bytes() == dataset.path(frame, "dn_png16").read_bytes()
+    assert validate_dataset(gamma_out).ok
+
+
+def test_frames_carry_the_targets_irradiance_and_v_magnitude(reference: Path) -> None:
+    """target_irradiance_w_m2 is the sum of the in-band radiance (radiance EXR) times
+    (p / f)^2 cos^3(theta): over the whole frame where nothing but the target is drawn (the
+    near frames, which it fills), over the object mask grown by one pixel where the Earth
+    fills the rest (the 50 km frame); the magnitude is -26.76 - 2.5 log10(E / E_sun) with
+    the Sun at 1 AU; validate accepts the fields."""
+    dataset = open_dataset(reference)
+    header = dataset.header
+    weights = np.array(header["sensor"]["channel_weights_rgb"])
+    K = np.array(header["camera"]["K"])
+    p_over_f = header["camera"]["pixel_pitch_m"] / header["camera"]["focal_length_m"]
+    v, u = np.mgrid[0:HEIGHT_PX, 0:WIDTH_PX]
+    cos3 = (1.0 + ((u - K[0, 2]) / K[0, 0]) ** 2 + ((v - K[1, 2]) / K[1, 1]) ** 2) ** -1.5
+    magnitudes = {}
+    for frame in dataset.frames:
+        radiance = read_exr(dataset.path(frame, "radiance_exr"))["RGB"].astype(np.float64)
+        mask = read_png(dataset.path(frame, "object_mask_png")) > 0
+        band = radiance @ weights
+        summed = np.ones(mask.shape, dtype=bool)
+        if (band[~mask] > 0).any():  # the Earth behind the target, all around it
+            assert (band[~mask] > 0).all()
+            corners = np.array(frame["keypoints_px"][:8])
+            x0, y0 = np.floor(corners.min(axis=0) + 0.5).astype(int)
+            x1, y1 = np.floor(corners.max(axis=0) + 0.5).astype(int) + 1
+            summed = binary_dilation(mask, structure=np.ones((3, 3), dtype=bool))
+            summed[:, :x0] = summed[:, x1:] = summed[:y0] = summed[y1:] = False
+            assert summed.sum() > mask.sum() > 0
+        expected = float(np.sum(np.where(summed, band, 0.0) * cos3)) * p_over_f**2
+        assert frame["target_irradiance_w_m2"] == pytest.approx(expected, rel=1e-5)
+        magnitude = -26.76 - 2.5 * np.log10(expected / frame["sun_irradiance_w_m2"])
+        assert frame["target_v_magnitude_equivalent"] == pytest.approx(magnitude, abs=1e-5)
+        magnitudes[frame["range_m"]] = frame["target_v_magnitude_equivalent"]
+    far = max(magnitudes)
+    assert far == pytest.approx(50e3, rel=0.01)
+    assert magnitudes[far] > max(m for r, m in magnitudes.items() if r < far)
+    assert validate_dataset(reference).ok
 
 
 def test_crop_only_dataset_has_no_full_frame_files(tmp_path: Path) -> None:

@@ -17,7 +17,7 @@ from satsight.config.scenario import Scenario, TargetConfig
 from satsight.dataset.frame_files import FrameArrays
 from satsight.dataset.journal import file_checksum
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
-from satsight.dataset.preview import DN_PREVIEW_STRETCH
+from satsight.dataset.preview import PreviewStretch
 from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.sun_moon import AU_M
 from satsight.errors import SatsightError
@@ -32,7 +32,8 @@ from satsight.render.renderer import Renderer
 from satsight.scene.loading import load_mesh
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.procedural import generate_satellite
-from satsight.sensor.chain import DnImage, SensorChain, blur_radius_px
+from satsight.sensor.chain import DnImage, SensorChain, blur_radius_px, exposure_regions
+from satsight.sensor.photometry import frame_photometry
 
 CONVENTIONS = {
     "units": "SI; names carry non-SI units",
@@ -49,9 +50,17 @@ CONVENTIONS = {
 
 def build_target(config: TargetConfig) -> TargetMesh:
     """The target mesh a scenario asks for (procedural or loaded from a file)."""
-    if config.procedural is not None:
-        return generate_satellite(config.procedural.satellite_class, config.procedural.seed)
-    return load_mesh(config.mesh.path, scale_m=config.mesh.scale_m)
+    p, m = config.procedural, config.mesh
+    if p is not None:
+        return generate_satellite(
+            p.satellite_class, p.seed, smooth_normals=p.smooth_normals, textures=p.textures
+        )
+    return load_mesh(
+        m.path,
+        scale_m=m.scale_m,
+        builtin_materials=m.materials,
+        crease_angle_deg=m.crease_angle_deg,
+    )
 
 
 def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[LightField, SunLight]:
@@ -88,16 +97,6 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
         if moon is None
         else center_body(track.moon_from_target_cam[index], track.moon_distance_m[index])
     )
-    light = environment_light_field(
-        sun_body,
-        irradiance,
-        earth_center_from_target_m=earth_center,
-        earth_albedo=0.30 if earth is None else earth.albedo,
-        moon_center_from_target_m=moon_center,
-        moon_albedo=0.12 if moon is None else moon.albedo,
-        l_max=scenario.render.sh_order,
-        sun_irradiance_at_target_w_m2=at_target,
-    )
     bodies = []
     if earth is not None:
         bodies.append(
@@ -111,6 +110,19 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
                 shape=earth.shape,
             )
         )
+    # The SH field (environment: sh, unshadowed) projects the same Earth the renderer
+    # traces: its shape, orientation and albedo map.
+    light = environment_light_field(
+        sun_body,
+        irradiance,
+        earth_center_from_target_m=earth_center,
+        earth_albedo=0.30 if earth is None else earth.albedo,
+        moon_center_from_target_m=moon_center,
+        moon_albedo=0.12 if moon is None else moon.albedo,
+        l_max=scenario.render.sh_order,
+        sun_irradiance_at_target_w_m2=at_target,
+        earth=bodies[0] if bodies else None,
+    )
     if moon is not None:
         bodies.append(moon_body(moon_center, MOON_MEAN_RADIUS_M, moon.albedo, sun_body, irradiance))
     light = dataclasses.replace(light, bodies=tuple(bodies))
@@ -156,7 +168,8 @@ def sensor_noise_rng(scenario_seed: int, frame_index: int) -> np.random.Generato
 
 
 def build_sensor(scenario: Scenario) -> SensorChain:
-    """The scenario's camera optics and detector, ready to expose frames."""
+    """The scenario's camera optics and detector, ready to expose frames (the blur kernel
+    designed for the render settings' sub-pixel sampling)."""
     camera = scenario.camera
     return SensorChain(
         camera=camera.build(),
@@ -166,6 +179,8 @@ def build_sensor(scenario: Scenario) -> SensorChain:
         spectrum=scenario.sun.spectrum,
         exposure=camera.exposure,
         camera_seed=camera.seed,
+        supersampling=scenario.render.supersampling,
+        samples_per_pixel=scenario.render.samples_per_pixel,
     )
 
 
@@ -250,25 +265,44 @@ def expose_frame(
 ) -> tuple[DnImage, dict]:
     """Frame ``index`` through the optics and the detector, with the stars behind the target.
 
-    Returns the DN image and the frame's sensor labels (exposure, saturation, stars).
+    Returns the DN image and the frame's sensor labels (exposure, saturation, stars), with
+    the exposure of the target and of the Earth and the Moon behind it told apart
+    (``sensor.regions``): the exposure rule serves the target, and a bright Earth behind it
+    may saturate; the labels say by how much.
     """
     irradiance = sensor.focal_plane_irradiance_w_m2(image)
     mask = image.object_mask
     exposure_s = sensor.exposure_time_s(irradiance, mask)
+    regions = exposure_regions(mask, image.background_mask())
+    # The regions' levels before the stars are added to the focal plane.
+    fills = {
+        name: sensor.region_fill(irradiance, exposure_s, where) for name, where in regions.items()
+    }
     stars = add_frame_stars(
         scenario, sensor, track, index, irradiance, mask, center_cam_m, exposure_s
     )
     dn_image = sensor.read_out(
         irradiance, exposure_s, sensor_noise_rng(scenario.seed, index), stars["star_count"]
     )
-    return dn_image, {"sensor": dn_image.labels(), **stars}
+    saturated = sensor.saturated(dn_image.dn)
+    labels = dn_image.labels()
+    labels["regions"] = {
+        name: {
+            "pixel_count": int(np.count_nonzero(where)),
+            "fill_fraction_p99": fills[name],
+            "saturated_pixel_count": int(np.count_nonzero(saturated & where)),
+        }
+        for name, where in regions.items()
+    }
+    return dn_image, {"sensor": labels, **stars}
 
 
 def sensor_summary(sensor: SensorChain) -> dict:
     """The camera's optics, detector and exposure rule, JSON-ready, for labels.json."""
     return {
         "description": "images/ hold raw DN (uint16, bias included); per frame: sensor "
-        "(exposure_time_s, saturated_pixel_count) and the stars drawn",
+        "(exposure_time_s, saturated_pixel_count, and per region - target, earth, moon - its "
+        "pixel_count, fill_fraction_p99 and saturated_pixel_count) and the stars drawn",
         "band_nm": list(sensor.band_nm),
         "effective_wavelength_m": sensor.effective_wavelength_m,
         "channel_weights_rgb": sensor.channel_weights.tolist(),
@@ -277,6 +311,15 @@ def sensor_summary(sensor: SensorChain) -> dict:
         "f_number": sensor.optics.f_number,
         "detector": dataclasses.asdict(sensor.detector),
         "exposure": sensor.exposure.model_dump(),
+        "frame_kernel": {
+            "description": "kernel applied to rendered frames so that their MTF is the "
+            "system MTF up to Nyquist, designed for the render's sub-pixel sampling; the "
+            "renderer adds a ring margin_px wide around the frame",
+            "size_px": int(sensor.psf.shape[0]),
+            "margin_px": sensor.margin_px,
+            "supersampling": sensor.supersampling,
+            "samples_per_pixel": sensor.samples_per_pixel,
+        },
         "camera_seed": sensor.camera_seed,
     }
 
@@ -335,7 +378,11 @@ class FrameEngine:
         cam_from_body = self.track.cam_from_body(plan_index)
         light, sun = frame_light(self.scenario, self.track, plan_index)
         image = self.renderer.render(
-            self.camera, cam_from_body, light, seed=frame_seed(self.scenario.seed, plan_index)
+            self.camera,
+            cam_from_body,
+            light,
+            seed=frame_seed(self.scenario.seed, plan_index),
+            margin_px=self.sensor.margin_px,
         )
         return RenderedFrame(frame_index, plan_index, cam_from_body, light, sun, image)
 
@@ -347,6 +394,22 @@ class FrameEngine:
         """
         scenario, plan_index = self.scenario, frame.plan_index
         labels = frame_labels(self.mesh, self.camera, frame.cam_from_body, frame.sun, frame.image)
+        # The Sun's in-band irradiance at the frame before the Earth's shadow, as frame_light
+        # lights it: the photometric labels' reference.
+        sun_distance_m = float(self.track.sun_distance_m[plan_index])
+        if scenario.sampler is None:
+            sun_irradiance = scenario.sun.in_band_irradiance_w_m2
+        else:
+            at_1_au = scenario.sun.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
+            sun_irradiance = at_1_au * (AU_M / sun_distance_m) ** 2
+        photometry = frame_photometry(
+            frame.image,
+            self.camera,
+            self.sensor.channel_weights,
+            labels["keypoints_px"][:8],
+            sun_irradiance,
+            sun_distance_m,
+        )
         dn_image, sensor_labels = expose_frame(
             scenario,
             self.sensor,
@@ -362,6 +425,7 @@ class FrameEngine:
         record["sun_direction_body"] = frame.sun.direction_body.tolist()
         record["environment_sh_radiance_w_m2_sr"] = frame.light.sh_radiance_w_m2_sr.tolist()
         record.update(labels)
+        record.update(photometry)
         record.update(sensor_labels)
         crop = scenario.outputs.crop
         box = None
@@ -402,7 +466,7 @@ class FrameEngine:
             },
             "render_settings": dataclasses.asdict(scenario.render.settings()),
             "sensor": sensor_summary(self.sensor),
-            "preview": {"stretch": DN_PREVIEW_STRETCH},
+            "preview": PreviewStretch.of_outputs(scenario.outputs).header(),
             "environment_light": {
                 "description": "per frame: environment_sh_radiance_w_m2_sr, earthshine "
                 "and moonshine as real SH, index l(l+1)+m, body frame, direction towards "

@@ -16,6 +16,7 @@ import tracemalloc
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from satsight.cli import main
@@ -106,9 +107,9 @@ def test_clean_dataset_passes_every_check(dataset: Path) -> None:
     assert report.ok, [str(p) for p in report.findings.problems]
     assert report.complete and report.frames_checked == FRAME_COUNT
     counts = report.findings.counts()
-    # 7 files of the full frame and 7 of its crop, every frame
-    assert counts["files"] == (2 * 7 * FRAME_COUNT, 0)
-    assert counts["checksums"] == (2 * 7 * FRAME_COUNT, 0)
+    # 8 files of the full frame and 8 of its crop, every frame
+    assert counts["files"] == (2 * 8 * FRAME_COUNT, 0)
+    assert counts["checksums"] == (2 * 8 * FRAME_COUNT, 0)
     for check in ("pose", "masks", "journal"):
         assert counts[check] == (FRAME_COUNT, 0)
     assert counts["crop"][1] == 0 and counts["crop"][0] >= FRAME_COUNT
@@ -177,6 +178,32 @@ def test_object_mask_values_and_shapes_are_checked(copy: Path) -> None:
     assert any(
         f"expected uint16 {CROP_PX}x{CROP_PX}, found uint16 {CROP_PX - 1}x{CROP_PX}" in m
         for m in problems_at(report, 3, crop_name)
+    )
+
+
+def test_background_mask_values_and_agreement_are_checked(copy: Path) -> None:
+    """Values other than 0, 1, 2; a body on the target; Earth pixels the labels do not count."""
+    from satsight.dataset.image_files import read_png, write_png
+
+    name = frame_file(copy, 1, "background_mask_png")
+    background = read_png(copy / name)
+    on = read_png(copy / frame_file(copy, 1, "object_mask_png")) == 255
+    y, x = np.argwhere(on)[0]
+    background[y, x] = 1  # the Earth on the target
+    write_png(copy / name, background)
+    report = validate_dataset(copy, hashes=False)
+    messages = problems_at(report, 1, name)
+    assert any(
+        "expected background 0 where the object mask is" in m and f"(x={x}, y={y})" in m
+        for m in messages
+    ), messages
+    assert any("expected sensor.regions.earth.pixel_count 1" in m for m in messages), messages
+    background[0, 0] = 3
+    write_png(copy / name, background)
+    report = validate_dataset(copy, hashes=False)
+    assert any(
+        "values 0 (space), 1 (Earth) and 2 (Moon) only" in m and "(x=0, y=0)" in m
+        for m in problems_at(report, 1, name)
     )
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -11,8 +12,8 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.config.sensor import ExposureConfig
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2, load_e490
-from satsight.render.buffers import RadianceImage
-from satsight.sensor.chain import SensorChain
+from satsight.render.buffers import RadianceImage, margin_pixels_xy
+from satsight.sensor.chain import SensorChain, exposure_regions
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
 from satsight.sensor.optics import Optics
 
@@ -21,8 +22,10 @@ H_PLANCK_J_S = 6.62607015e-34
 C_M_S = 299_792_458.0
 
 
-def _chain(exposure: ExposureConfig | None = None, **detector) -> SensorChain:
-    camera = PinholeCamera.high_resolution().with_size(96, 80)
+def _chain(
+    exposure: ExposureConfig | None = None, size_px: tuple[int, int] = (96, 80), **detector
+) -> SensorChain:
+    camera = PinholeCamera.high_resolution().with_size(*size_px)
     return SensorChain(
         camera=camera,
         optics=Optics.for_preset("high_resolution"),
@@ -101,17 +104,19 @@ def test_exposure_rule_falls_back_and_clips() -> None:
 
 def test_uniform_patch_reads_the_closed_form_dn() -> None:
     """A large grey patch: inside it, mean DN = bias + QE E A t / (h c / lambda_eff) / g with
-    E = pi L tau / (4 N^2); the sky around it reads the bias."""
-    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002))
-    radiance = np.zeros((80, 96, 3), np.float32)
-    radiance[20:60, 20:76] = 30.0
+    E = pi L tau / (4 N^2); the sky beyond the blur's reach reads the bias. "Inside" and
+    "beyond" are farther than the kernel's radius (20 px) from the patch's edge: nearer, the
+    Airy wings carry light out of the patch (~0.5 % at 8 px inside it)."""
+    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002), size_px=(180, 140))
+    radiance = np.zeros((140, 180, 3), np.float32)
+    radiance[40:120, 30:150] = 30.0
     image = _image(radiance)
     irradiance = chain.focal_plane_irradiance_w_m2(image)
     dn = chain.read_out(irradiance, 0.002, np.random.default_rng(5)).dn
     d, optics = chain.detector, chain.optics
     e_w_m2 = math.pi * 30.0 * optics.transmission / (4.0 * optics.f_number**2)
     electrons = d.quantum_efficiency * e_w_m2 * d.pixel_area_m2 * 0.002 / chain.photon_energy_j
-    inner = dn[28:52, 28:68].astype(np.float64)
+    inner = dn[61:99, 51:129].astype(np.float64)
     # Per-pixel spread: shot noise, 1 % PRNU, read noise and quantisation, in DN.
     sigma_dn = math.sqrt(electrons + (0.01 * electrons) ** 2 + d.read_noise_e**2) / (
         d.conversion_gain_e_per_dn
@@ -119,7 +124,7 @@ def test_uniform_patch_reads_the_closed_form_dn() -> None:
     sem = math.hypot(sigma_dn, math.sqrt(1 / 12)) / math.sqrt(inner.size)
     expected = d.bias_dn + electrons / d.conversion_gain_e_per_dn
     assert abs(inner.mean() - expected) < 5 * sem
-    sky = dn[:8, :].astype(np.float64)
+    sky = dn[:19, :].astype(np.float64)
     assert abs(sky.mean() - d.bias_dn) < 5 * 1.0 / math.sqrt(sky.size) + 0.01
 
 
@@ -170,9 +175,11 @@ def test_psf_kernel_grows_with_the_defocus_blur_disc() -> None:
         detector=DetectorParameters(),
         band_nm=BAND_NM,
     )
-    assert focused.psf.shape == (15, 15)
+    assert focused.psf.shape == (41, 41)
+    assert focused.margin_px == 20
     # A 20-pixel disc fits inside the kernel with the diffraction margin kept.
-    assert blurred.psf.shape == (35, 35)
+    assert blurred.psf.shape == (61, 61)
+    assert blurred.margin_px == 30
     assert float(blurred.psf.sum()) == pytest.approx(1.0, abs=1e-6)
     # The disc's light is spread: the centre holds about one disc pixel's share.
     assert float(blurred.psf.max()) == pytest.approx(4 / (math.pi * 20**2), rel=0.1)
@@ -183,9 +190,9 @@ def test_a_coloured_patch_counts_the_photons_of_its_own_third(channel) -> None:
     """Light in one channel only: its photons are its in-band power over h c / lambda_c,
     lambda_c the photon-weighted wavelength of that third of the band (not of the whole
     band, which would miscount red light by +27 % and blue light by -19 %)."""
-    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002))
-    radiance = np.zeros((80, 96, 3), np.float32)
-    radiance[20:60, 20:76, channel] = 40.0
+    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002), size_px=(140, 120))
+    radiance = np.zeros((120, 140, 3), np.float32)
+    radiance[20:100, 20:120, channel] = 40.0
     irradiance = chain.focal_plane_irradiance_w_m2(_image(radiance))
     lo, hi = {0: (750.0, 900.0), 1: (600.0, 750.0), 2: (450.0, 600.0)}[channel]
     third = band_irradiance_w_m2((lo, hi))
@@ -200,8 +207,9 @@ def test_a_coloured_patch_counts_the_photons_of_its_own_third(channel) -> None:
     power_w_m2 = (third / whole) * 40.0 * math.pi * optics.transmission / (4 * optics.f_number**2)
     photons = power_w_m2 * lam_m / (H_PLANCK_J_S * C_M_S) * d.pixel_area_m2 * 0.002
     got = photons_per_pixel(irradiance, d.pixel_area_m2, 0.002, chain.photon_energy_j)
-    # Inside the patch, away from its edges (the PSF); 1e-3: the table's sampling.
-    np.testing.assert_allclose(got[30:50, 30:66], photons, rtol=1e-3)
+    # Inside the patch, beyond the kernel's reach (20 px) from its edges; 1e-3: the table's
+    # sampling.
+    np.testing.assert_allclose(got[41:79, 41:99], photons, rtol=1e-3)
 
 
 def test_light_outside_the_object_mask_is_kept() -> None:
@@ -220,5 +228,106 @@ def test_light_outside_the_object_mask_is_kept() -> None:
     irradiance = chain.focal_plane_irradiance_w_m2(image)
     optics = chain.optics
     expected = 70.0 * math.pi * optics.transmission / (4 * optics.f_number**2)
-    # The PSF spreads it; the sum over the frame keeps it (far from the edges).
-    assert float(irradiance.sum()) == pytest.approx(expected, rel=1e-5)
+    # The kernel spreads it; the sum over the frame keeps it (far from the edges), plus what
+    # clipping the kernel's negative side lobes at 0 adds to an isolated bright pixel (their
+    # share, 8 % at f/10 with one centre sample per pixel; see frame_kernel).
+    kernel = chain.psf.astype(np.float64)
+    assert kernel.sum() == pytest.approx(1.0, abs=1e-6)
+    lobes = float(-kernel[kernel < 0].sum())
+    assert 0.07 < lobes < 0.09
+    assert float(irradiance.sum()) == pytest.approx(expected * (1 + lobes), rel=1e-5)
+
+
+def _with_ring(radiance_rgb: np.ndarray, margin_px: int) -> RadianceImage:
+    """A frame whose radiance comes from the middle of a larger (H + 2m, W + 2m, 3) scene,
+    with the rest as its margin ring (the renderer's ``margin_pixels_xy`` order)."""
+    m = margin_px
+    h, w = radiance_rgb.shape[0] - 2 * m, radiance_rgb.shape[1] - 2 * m
+    x, y = margin_pixels_xy(w, h, m)
+    inner = _image(radiance_rgb[m : m + h, m : m + w])
+    return dataclasses.replace(
+        inner, margin_px=m, margin_radiance_w_m2_sr=radiance_rgb[y + m, x + m].astype(np.float32)
+    )
+
+
+def test_a_scene_filling_the_frame_reads_uniform_to_the_corners_with_the_margin() -> None:
+    # Every frame pixel's kernel footprint lies on the uniform scene, so each reads the
+    # camera equation's irradiance exactly, up to float32 rounding (~1e-7; bound 1e-5).
+    # Without the ring the frame is dark beyond its edge and the edge pixels read low.
+    chain = _chain()
+    m = chain.margin_px
+    scene = np.full((80 + 2 * m, 96 + 2 * m, 3), 25.0, np.float32)
+    optics = chain.optics
+    expected = 25.0 * math.pi * optics.transmission / (4.0 * optics.f_number**2)
+    irradiance = chain.focal_plane_irradiance_w_m2(_with_ring(scene, m))
+    assert irradiance.shape == (80, 96)
+    np.testing.assert_allclose(irradiance, expected, rtol=1e-5)
+    bare = chain.focal_plane_irradiance_w_m2(_image(scene[m:-m, m:-m]))
+    assert bare[40, 0] / expected == pytest.approx(1 - 0.12, abs=0.005)  # edge rows: -12 %
+    assert bare[0, 0] / expected == pytest.approx(1 - 0.218, abs=0.005)  # corners: -22 %
+    # A wider ring than the kernel needs changes nothing.
+    wide = np.full((80 + 2 * (m + 7), 96 + 2 * (m + 7), 3), 25.0, np.float32)
+    irradiance = chain.focal_plane_irradiance_w_m2(_with_ring(wide, m + 7))
+    np.testing.assert_allclose(irradiance, expected, rtol=1e-5)
+
+
+def test_light_only_in_the_margin_ring_reaches_the_frame_edge() -> None:
+    chain = _chain()
+    m = chain.margin_px
+    scene = np.zeros((80 + 2 * m, 96 + 2 * m, 3), np.float32)
+    scene[m + 30 : m + 50, m - 3 : m - 1] = 60.0  # a strip just left of the frame
+    with_ring = chain.focal_plane_irradiance_w_m2(_with_ring(scene, m))
+    assert with_ring[33:47, 0].min() > 0.0
+    assert not with_ring[:, 40:].any()  # beyond the kernel's reach: exactly 0
+    # The same frame pixels as blurring the whole scene without a ring.
+    camera = PinholeCamera.high_resolution().with_size(96 + 2 * m, 80 + 2 * m)
+    whole = dataclasses.replace(chain, camera=camera).focal_plane_irradiance_w_m2(_image(scene))
+    np.testing.assert_allclose(with_ring, whole[m:-m, m:-m], rtol=0, atol=1e-6 * whole.max())
+    bad = dataclasses.replace(_with_ring(scene, m), margin_radiance_w_m2_sr=np.zeros((5, 3)))
+    with pytest.raises(SatsightError, match="margin ring"):
+        chain.focal_plane_irradiance_w_m2(bad)
+
+
+def test_the_kernel_follows_the_render_sampling() -> None:
+    camera = PinholeCamera.high_resolution().with_size(96, 80)
+    optics = Optics.for_preset("high_resolution")
+
+    def chain(s: int, spp: int) -> SensorChain:
+        return SensorChain(camera, optics, DetectorParameters(), BAND_NM, supersampling=s,
+                           samples_per_pixel=spp)  # fmt: skip
+
+    one, four, jittered = chain(1, 1), chain(2, 1), chain(1, 16)
+    # Averaged sub-pixel samples blur already: the kernel sharpens less of the frame.
+    assert one.psf[20, 20] < four.psf[20, 20] < jittered.psf[20, 20]
+    with pytest.raises(SatsightError, match="supersampling"):
+        chain(0, 1)
+    with pytest.raises(SatsightError, match="samples_per_pixel"):
+        chain(1, 0)
+
+
+def test_exposure_labels_tell_the_target_and_a_bright_earth_apart() -> None:
+    """The auto exposure serves the target; the Earth behind it, 20 x brighter, is reported
+    at 20 x the target's fill and all its pixels saturated, the target's none."""
+    chain = _chain(ExposureConfig(fill_fraction=0.7, percentile=99.0), blooming=False)
+    target = np.zeros((80, 96), bool)
+    target[20:50, 30:70] = True
+    background = np.zeros((80, 96), np.uint8)
+    background[60:, :] = 1  # the Earth below the target
+    irradiance = np.where(target, np.float32(0.2), np.float32(0.0))
+    irradiance[background == 1] = 4.0
+    t = chain.exposure_time_s(irradiance, target)
+    regions = exposure_regions(target, background)
+    assert not regions["moon"].any()
+    fill = {name: chain.region_fill(irradiance, t, where) for name, where in regions.items()}
+    assert fill["target"] == pytest.approx(0.7, rel=1e-6)
+    d = chain.detector
+    rate_e_per_s = d.quantum_efficiency * 4.0 * d.pixel_area_m2 / chain.photon_energy_j
+    assert fill["earth"] == pytest.approx(
+        (rate_e_per_s + d.dark_current_e_per_s) * t / d.full_well_e, rel=1e-6
+    )
+    assert fill["earth"] == pytest.approx(14.0, rel=1e-3)  # 0.7 x 20, the dark current ~0
+    assert fill["moon"] is None
+    dn = chain.read_out(irradiance, t, np.random.default_rng(4)).dn
+    saturated = chain.saturated(dn)
+    assert not (saturated & regions["target"]).any()
+    assert np.count_nonzero(saturated & regions["earth"]) == np.count_nonzero(background == 1)

@@ -20,7 +20,7 @@ OUTPUT_FILE_KEYS: dict[str, tuple[str, ...]] = {
     "radiance": ("radiance_exr",),
     "depth": ("depth_exr",),
     "normals": ("normals_exr",),
-    "masks": ("object_mask_png", "part_mask_png16"),
+    "masks": ("object_mask_png", "part_mask_png16", "background_mask_png"),
 }
 OutputName = Literal["dn", "preview", "radiance", "depth", "normals", "masks"]
 ALL_OUTPUTS: tuple[str, ...] = tuple(OUTPUT_FILE_KEYS)
@@ -29,6 +29,20 @@ OUTPUT_PROFILES: dict[str, tuple[str, ...]] = {
     "all": ALL_OUTPUTS,
     "lean": ("dn", "masks"),
 }
+
+
+#: The 8-bit previews' stretches (``satsight.dataset.preview``): ``asinh`` (default: faint
+#: stars and the target both show) or ``gamma`` (the earlier look, byte for byte).
+PreviewStretchName = Literal["asinh", "gamma"]
+PREVIEW_STRETCHES: tuple[str, ...] = ("asinh", "gamma")
+DEFAULT_PREVIEW_STRETCH = "asinh"
+
+#: Softening of the asinh stretch, DN above the bias: below it the stretch is linear, above
+#: it logarithmic (Lupton et al. 2004, PASP 116, 133, Eq. 2, beta = softening). 5 DN is
+#: about 6 read-noise sigma of the default detector (5 e- rms at 5.83 e-/DN = 0.86 DN), so
+#: the noise stays in the darkest levels (1 sigma: 4/255, 3 sigma: 13/255) while a star of
+#: 300 e- peak (51 DN) shows at 76/255 and the target above half full well at 237-255.
+DEFAULT_ASINH_SOFTENING_DN = 5.0
 
 
 class CropConfig(BaseModel):
@@ -45,13 +59,20 @@ class CropConfig(BaseModel):
 
 
 class OutputsConfig(BaseModel):
-    """The files written per frame (labels are always written)."""
+    """The files written per frame (labels are always written).
+
+    preview_stretch: how raw DN become the 8-bit previews (``asinh`` or ``gamma``, see
+    ``satsight.dataset.preview``). preview_softening_dn: the asinh stretch's softening,
+    DN above the bias (unused by ``gamma``).
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     files: tuple[OutputName, ...] = ALL_OUTPUTS
     crop: CropConfig | None = None
     contact_sheet: bool = True
+    preview_stretch: PreviewStretchName = DEFAULT_PREVIEW_STRETCH
+    preview_softening_dn: float = Field(default=DEFAULT_ASINH_SOFTENING_DN, gt=0, le=65535)
 
     @field_validator("files")
     @classmethod

@@ -6,6 +6,7 @@ Output names and what they hold:
 - ``dn_png16``: uint16 (H, W) raw DN. ``preview_png8``: uint8 (H, W).
 - ``object_mask_png``: uint8 (H, W), values 0 and 255 only.
 - ``part_mask_png16``: uint16 (H, W) part ids.
+- ``background_mask_png``: uint8 (H, W), 0 space, 1 the Earth, 2 the Moon.
 - ``radiance_exr``: float32 R, G, B, each (H, W), W m^-2 sr^-1, finite and >= 0.
 - ``depth_exr``: float32 Z (H, W), metres, finite and >= 0.
 - ``normals_exr``: float32 X, Y, Z, each pixel a unit vector or exactly zero.
@@ -30,6 +31,7 @@ PNG_TYPES = {
     "preview_png8": np.uint8,
     "object_mask_png": np.uint8,
     "part_mask_png16": np.uint16,
+    "background_mask_png": np.uint8,
 }
 EXR_CHANNELS = {
     "radiance_exr": ("R", "G", "B"),
@@ -79,6 +81,9 @@ def _bad_values(key: str, planes: list[np.ndarray]) -> tuple[np.ndarray | None, 
         # 0 and 255 are exactly the values that wrap to 1 and 0 when one is added.
         bad = (planes[0] + np.uint8(1)) > 1
         return (bad if bad.any() else None), "values 0 and 255 only"
+    if key == "background_mask_png":
+        bad = planes[0] > 2
+        return (bad if bad.any() else None), "values 0 (space), 1 (Earth) and 2 (Moon) only"
     if key == "radiance_exr":
         return _finite_non_negative(planes), "finite radiance >= 0"
     if key == "depth_exr":

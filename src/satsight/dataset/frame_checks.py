@@ -34,7 +34,7 @@ DEPTH_RTOL = 1e-5
 DEPTH_ATOL_M = 1e-3
 BBOX_MARGIN_PX = 1.0
 # Images compared with the labels after decoding; the others are checked and dropped.
-KEPT_IMAGES = ("object_mask_png", "part_mask_png16", "depth_exr")
+KEPT_IMAGES = ("object_mask_png", "part_mask_png16", "depth_exr", "background_mask_png")
 
 
 class FrameCheck:
@@ -221,7 +221,9 @@ class FrameCheck:
 
     # --- labels against the images --------------------------------------------------------
     def check_images(self, images: dict, labels: dict, files: dict, check: str) -> None:
-        """Box from the object mask; part mask and depth nonzero exactly where the mask is."""
+        """Box from the object mask; part mask and depth nonzero exactly where the mask is;
+        the background mask zero on the target, and its Earth and Moon pixel counts those of
+        the frame's exposure labels (``sensor.regions``, when recorded)."""
         mask = images.get("object_mask_png")
         if mask is None:
             return
@@ -247,6 +249,38 @@ class FrameCheck:
                     f"found {int(differ.sum())} pixel(s) where they differ, the first "
                     f"at (x={x}, y={y})",
                     files[key],
+                )
+        self.check_background(images.get("background_mask_png"), on, labels, files, check)
+
+    def check_background(
+        self, background: np.ndarray | None, on: np.ndarray, labels: dict, files: dict, check: str
+    ) -> None:
+        """The background mask (0 space, 1 Earth, 2 Moon) is 0 where the target is, and
+        counts the pixels the exposure labels give for the Earth and the Moon."""
+        if background is None or background.shape != on.shape:
+            return
+        file = files["background_mask_png"]
+        both = on & (background > 0)
+        if both.any():
+            y, x = np.argwhere(both)[0]
+            self.problem(
+                check,
+                f"expected background 0 where the object mask is, found {int(both.sum())} "
+                f"pixel(s) with a body, the first at (x={x}, y={y})",
+                file,
+            )
+        regions = (labels.get("sensor") or {}).get("regions")
+        if not isinstance(regions, dict):
+            return
+        for value, name in ((1, "earth"), (2, "moon")):
+            found = (regions.get(name) or {}).get("pixel_count")
+            count = int(np.count_nonzero(background == value))
+            if found is not None and found != count:
+                self.problem(
+                    check,
+                    f"expected sensor.regions.{name}.pixel_count {count} (the background "
+                    f"mask's pixels of value {value}), found {found}",
+                    file,
                 )
 
     def check_mask_counts(self, on: np.ndarray, labels: dict, file: str, check: str) -> None:

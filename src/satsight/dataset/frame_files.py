@@ -3,12 +3,13 @@
 Layout (frame index k as six digits; see docs/dataset_format.md)::
 
     images/frame_k.png          16-bit raw digital numbers (bias included)
-    previews/frame_k.png        8-bit display stretch of the DN image
+    previews/frame_k.png        8-bit display stretch of the DN image (outputs.preview_stretch)
     radiance/frame_k.exr        float32 radiance, W m^-2 sr^-1 (channels R, G, B)
     depth/frame_k.exr           float32 depth along +z_cam in metres (channel Z), 0 = none
     normals/frame_k.exr         float32 unit normals in the camera frame (X, Y, Z)
     masks/frame_k_object.png    8-bit object mask (255 = target)
     masks/frame_k_parts.png     16-bit part ids (0 = background, part index + 1)
+    masks/frame_k_background.png  8-bit body behind the target (0 space, 1 Earth, 2 Moon)
     crop/<same folders>/...     the same files cut to the crop window, when asked for
 
 Files are only ever renamed into place whole, so a reader never sees a half-written file.
@@ -26,7 +27,7 @@ import numpy as np
 
 from satsight.dataset.image_files import encode_png, write_exr
 from satsight.dataset.journal import bytes_checksum, file_checksum, temporary_name
-from satsight.dataset.preview import dn_preview_uint8
+from satsight.dataset.preview import PreviewStretch
 from satsight.errors import SatsightError
 from satsight.render.buffers import RadianceImage
 from satsight.sensor.chain import DnImage
@@ -40,6 +41,7 @@ FILE_LAYOUT: dict[str, tuple[str, str]] = {
     "normals_exr": ("normals", ".exr"),
     "object_mask_png": ("masks", "_object.png"),
     "part_mask_png16": ("masks", "_parts.png"),
+    "background_mask_png": ("masks", "_background.png"),
 }
 CROP_FOLDER = "crop"
 
@@ -75,6 +77,7 @@ class FrameArrays:
                 image.depth_m[cut],
                 image.part_id[cut],
                 image.normals_cam[cut],
+                background_id=None if image.background_id is None else image.background_id[cut],
             ),
             DnImage(
                 dn.dn[cut],
@@ -87,18 +90,20 @@ class FrameArrays:
         )
 
 
-def _png_bytes(key: str, arrays: FrameArrays) -> bytes:
+def _png_bytes(key: str, arrays: FrameArrays, preview: PreviewStretch) -> bytes:
     image, dn = arrays.image, arrays.dn_image
     if key == "dn_png16":
         # Raw DN is mostly read noise: unfiltered rows compress as well as filtered ones
         # (within 1 %) and encode 3x faster.
         return encode_png(dn.dn, noisy=True)
     if key == "preview_png8":
-        return encode_png(dn_preview_uint8(dn.dn, dn.bias_dn, dn.full_well_dn))
+        return encode_png(preview.apply(dn.dn, dn.bias_dn, dn.full_well_dn))
     if key == "object_mask_png":
         return encode_png(image.object_mask.astype(np.uint8) * np.uint8(255))
     if key == "part_mask_png16":
         return encode_png(np.ascontiguousarray(image.part_id))
+    if key == "background_mask_png":
+        return encode_png(np.ascontiguousarray(image.background_mask()))
     raise KeyError(key)
 
 
@@ -114,7 +119,9 @@ def _exr_channels(key: str, arrays: FrameArrays) -> dict[str, np.ndarray]:
     raise KeyError(key)
 
 
-def _write_file(root: Path, relative: str, key: str, arrays: FrameArrays) -> dict:
+def _write_file(
+    root: Path, relative: str, key: str, arrays: FrameArrays, preview: PreviewStretch
+) -> dict:
     """Encode and write one file through a temporary name; its checksum."""
     path = root / relative
     tmp = temporary_name(path)
@@ -124,7 +131,7 @@ def _write_file(root: Path, relative: str, key: str, arrays: FrameArrays) -> dic
             write_exr(tmp, _exr_channels(key, arrays))
             checksum = file_checksum(tmp)
         else:
-            data = _png_bytes(key, arrays)
+            data = _png_bytes(key, arrays, preview)
             checksum = bytes_checksum(data)
             tmp.write_bytes(data)
         os.replace(tmp, path)
@@ -148,13 +155,16 @@ def write_frame_files(
     crop_box: tuple[int, int, int, int] | None,
     full_frame: bool,
     submit: Callable[..., object] | Executor | None = None,
+    preview: PreviewStretch | None = None,
 ) -> tuple[dict, dict, dict]:
     """Write frame ``index``'s files; return (files, crop files, checksums by path).
 
     keys: the file keys to write. crop_box: (x0, y0, x1, y1) of the crop window, or None
     for no crop. full_frame: whether to write the full frame's files. submit: an executor
     to encode the files in parallel (their encoders release the GIL), or None for serial.
+    preview: the 8-bit previews' stretch (None: the default, ``PreviewStretch()``).
     """
+    preview = PreviewStretch() if preview is None else preview
     jobs: list[tuple[str, str, bool]] = []
     if full_frame:
         jobs += [(key, relative_path(key, index), False) for key in keys]
@@ -164,7 +174,7 @@ def write_frame_files(
 
     def run(job: tuple[str, str, bool]) -> dict:
         key, relative, is_crop = job
-        return _write_file(root, relative, key, cropped if is_crop else arrays)
+        return _write_file(root, relative, key, cropped if is_crop else arrays, preview)
 
     if submit is None:
         results = [run(job) for job in jobs]

@@ -8,9 +8,11 @@ short third, green: middle, red: long), the reading in which each channel's refl
 holds over its third of the band; each third's photons are counted at its own
 photon-weighted wavelength. Then, in the detector's physical order:
 
-1. optics: the camera equation E = pi L tau (1 - eps^2) / (4 N^2), then the polychromatic
-   PSF (diffraction of the obscured aperture over the band, jitter), convolved where there
-   is signal (``satsight.sensor.optics``);
+1. optics: the camera equation E = pi L tau (1 - eps^2) / (4 N^2) (``satsight.sensor.optics``),
+   then the blur of the system OTF (diffraction of the obscured aperture over the band,
+   pixel aperture, jitter, defocus) by a kernel designed for the renderer's sub-pixel
+   sampling (``satsight.sensor.psf.frame_kernel``), convolved where there is signal, with
+   the margin ring the renderer adds around the frame (``satsight.sensor.convolution``);
 2. stars: their photons, each through the same optics at its exact sub-pixel position
    (``satsight.sensor.star_field``), added to the focal plane;
 3. exposure: a fixed time, or the time that fills a chosen fraction of full well with the
@@ -43,26 +45,25 @@ from satsight.lighting.solar_spectrum import (
     photon_weighted_wavelength_m,
     spectral_weights,
 )
-from satsight.render.buffers import RadianceImage
+from satsight.render.buffers import RadianceImage, margin_pixels_xy
+from satsight.sensor.convolution import apply_optics
 from satsight.sensor.detector import (
     DetectorParameters,
     exposure_for_fill,
     mean_photon_energy_j,
     simulate_detector,
 )
-from satsight.sensor.optics import (
-    Optics,
-    apply_optics,
-    band_wavelengths_m,
-    focal_plane_irradiance_w_m2,
-    psf_kernel,
-)
+from satsight.sensor.mtf import band_wavelengths_m, check_render_sampling
+from satsight.sensor.optics import Optics, focal_plane_irradiance_w_m2
+from satsight.sensor.psf import frame_kernel
 
-#: Side of the PSF kernel applied to rendered frames, pixels (odd). At f/10 and 450-900 nm
-#: the Airy core is ~0.3-0.6 px in radius; 15 px holds all but ~1 % of the power (the
-#: kernel is renormalised, which puts the far wings back into it). A defocus blur disc
-#: widens it by its diameter (``psf_size_px``).
-PSF_SIZE_PX = 15
+#: Side of the kernel applied to rendered frames, pixels (odd). The kernel's response is the
+#: system OTF over the pixel Nyquist square; its taps fall off as 1 / m^2 (the response's
+#: kink at Nyquist), and cutting them at a half-width of R = 20 px raises the response at
+#: Nyquist by 1.5 % (f/7) to 1.8 % (f/10), by < 0.7 % up to 0.95 x Nyquist (R = 7, a 15 px
+#: kernel: 4.0-4.7 %); see ``frame_kernel``. A defocus blur disc and jitter widen it
+#: (``psf_size_px``).
+PSF_SIZE_PX = 41
 
 
 def blur_radius_px(optics: Optics, pixel_pitch_m: float) -> int:
@@ -79,6 +80,26 @@ def psf_size_px(optics: Optics, pixel_pitch_m: float) -> int:
 
 #: Largest number of target pixels the auto exposure takes its percentile over.
 EXPOSURE_SAMPLE_PIXELS = 1 << 20
+
+#: Percentile of a region's mean signal that its exposure label reports (``region_fill``).
+REGION_FILL_PERCENTILE = 99.0
+
+
+def exposure_regions(object_mask: np.ndarray, background_mask: np.ndarray) -> dict:
+    """The parts of a frame whose exposure the labels report apart: {"target", "earth",
+    "moon": (H, W) bool}, from the object mask and ``RadianceImage.background_mask`` (0 space,
+    1 the Earth, 2 the Moon behind the target)."""
+    return {"target": object_mask, "earth": background_mask == 1, "moon": background_mask == 2}
+
+
+def _percentile_of(values: np.ndarray, percentile: float) -> float | None:
+    """The percentile of ``values``, over an evenly strided subset of at most
+    ``EXPOSURE_SAMPLE_PIXELS`` of them (None when empty)."""
+    if values.size == 0:
+        return None
+    if values.size > EXPOSURE_SAMPLE_PIXELS:
+        values = values[:: -(-values.size // EXPOSURE_SAMPLE_PIXELS)]
+    return float(np.percentile(values, percentile))
 
 
 @dataclass(frozen=True)
@@ -115,7 +136,8 @@ class SensorChain:
     camera: the pinhole camera (focal length, pixel pitch, image size). optics, detector:
     the telescope and CCD. band_nm: the detected band (nm). spectrum: the solar spectrum of
     the reflected light. exposure: the exposure rule. camera_seed: fixes the detector's
-    PRNU and DSNU maps.
+    PRNU and DSNU maps. supersampling, samples_per_pixel: the renderer's sub-pixel sampling
+    (``RenderSettings``), for which the blur kernel ``psf`` is designed (``frame_kernel``).
     """
 
     camera: PinholeCamera
@@ -125,6 +147,8 @@ class SensorChain:
     spectrum: Spectrum = "astm_e490"
     exposure: ExposureConfig = field(default_factory=ExposureConfig)
     camera_seed: int = 0
+    supersampling: int = 1
+    samples_per_pixel: int = 1
     psf: np.ndarray = field(init=False, repr=False)
     channel_weights: np.ndarray = field(init=False, repr=False)
     channel_photon_weights: np.ndarray = field(init=False, repr=False)
@@ -142,12 +166,15 @@ class SensorChain:
                 f"the detector's pixel pitch ({self.detector.pixel_pitch_m:g} m) differs from "
                 f"the camera's ({self.camera.pixel_pitch_m:g} m); build both from one config"
             )
-        psf = psf_kernel(
+        s, spp = check_render_sampling(self.supersampling, self.samples_per_pixel)
+        psf = frame_kernel(
             self.optics,
             band_wavelengths_m((lo, hi)),
             None,
             self.camera.pixel_pitch_m,
             psf_size_px(self.optics, self.camera.pixel_pitch_m),
+            s,
+            spp,
         )
         edges = np.linspace(lo, hi, 4)
         blue, green, red = spectral_weights(edges, self.spectrum)
@@ -179,17 +206,32 @@ class SensorChain:
             )
         return radiance @ self.channel_weights
 
+    @property
+    def margin_px(self) -> int:
+        """Width (px) of the ring around the frame whose light the kernel spreads into the
+        frame: the kernel's radius. Render with ``Renderer.render(..., margin_px=this)``."""
+        return self.psf.shape[0] // 2
+
     def focal_plane_irradiance_w_m2(self, image: RadianceImage) -> np.ndarray:
         """(H, W) float32 photon-equivalent in-band irradiance on the detector from the
-        rendered scene, after the camera equation and the PSF (W m^-2, pixel-averaged).
+        rendered scene, after the camera equation and the blur (W m^-2, pixel-averaged).
 
         "Photon-equivalent": each channel's power is weighted by its photons, lambda_c /
         lambda_eff, so the detector's single photon energy h c / lambda_eff counts every
         channel's photons right (exact power for grey surfaces, whose weights sum to 1).
-        Only the bounding box of the non-zero radiance is combined (the renderer's
-        background is 0; with supersampling, edge pixels whose centre misses the target
-        still carry light), with the camera equation folded into the channel weights:
-        E = sum_c w_c (lambda_c / lambda_eff) L_c pi tau (1 - eps^2) / (4 N^2).
+        Only the bounding box of the non-zero radiance (frame and margin ring) is combined
+        (the renderer's background is 0; with supersampling, edge pixels whose centre misses
+        the target still carry light), with the camera equation folded into the channel
+        weights: E = sum_c w_c (lambda_c / lambda_eff) L_c pi tau (1 - eps^2) / (4 N^2).
+
+        The blur reaches ``margin_px`` pixels across the frame's edge. When the image carries
+        the radiance of a ring at least that wide around the frame
+        (``RadianceImage.margin_radiance_w_m2_sr``, from ``Renderer.render(...,
+        margin_px=chain.margin_px)``), the edge pixels get the light from beyond the frame
+        and a uniform scene reads uniform to the corners. Without a ring (or with a narrower
+        one) the frame is taken as dark beyond it: edge pixels of a scene that fills the
+        frame then read low, by 10-12 % on the edge rows and 19-22 % in the corners with the
+        default kernel at f/7 and f/10.
         """
         radiance = image.radiance_w_m2_sr
         if radiance.ndim != 3 or radiance.shape[2] != 3:
@@ -197,19 +239,57 @@ class SensorChain:
                 f"radiance must be (H, W, 3) W m^-2 sr^-1, got shape {radiance.shape}"
             )
         h, w = radiance.shape[:2]
-        focal = np.zeros((h, w), dtype=np.float32)
-        rows = np.flatnonzero(radiance.reshape(h, -1).max(axis=1, initial=0.0) > 0)
-        if rows.size == 0:
-            return focal
-        band = radiance[rows[0] : rows[-1] + 1]
-        # Column maxima over the rows first (a contiguous reduction), then over channels.
-        cols = np.flatnonzero(band.max(axis=0).max(axis=1) > 0)
-        box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+        ring = image.margin_radiance_w_m2_sr
+        m = int(image.margin_px) if ring is not None else 0
         factor = float(focal_plane_irradiance_w_m2(1.0, self.optics))
         weights = (self.channel_photon_weights * np.float32(factor)).astype(np.float32)
-        np.matmul(radiance[box].astype(np.float32, copy=False), weights, out=focal[box])
-        signal_box = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
-        return apply_optics(focal, self.psf, signal_box=signal_box)
+        # The frame and its ring on one (H + 2m, W + 2m) grid; np.zeros maps pages lazily,
+        # so the empty parts cost nothing.
+        focal = np.zeros((h + 2 * m, w + 2 * m), dtype=np.float32)
+        boxes = []
+        rows = np.flatnonzero(radiance.reshape(h, -1).max(axis=1, initial=0.0) > 0)
+        if rows.size:
+            band = radiance[rows[0] : rows[-1] + 1]
+            # Column maxima over the rows first (a contiguous reduction), then over channels.
+            cols = np.flatnonzero(band.max(axis=0).max(axis=1) > 0)
+            r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+            frame_box = (slice(r0 + m, r1 + m), slice(c0 + m, c1 + m))
+            np.matmul(
+                radiance[r0:r1, c0:c1].astype(np.float32, copy=False),
+                weights,
+                out=focal[frame_box],
+            )
+            boxes.append((r0 + m, r1 + m, c0 + m, c1 + m))
+        if m:
+            ring = np.asarray(ring, dtype=np.float32)
+            x, y = margin_pixels_xy(w, h, m)
+            if ring.shape != (x.size, 3):
+                raise SatsightError(
+                    f"the margin ring of a {w} x {h} frame, {m} px wide, holds {x.size} pixels "
+                    f"(n, 3); got radiance of shape {ring.shape}"
+                )
+            values = ring @ weights  # (n,), > 0 where any channel is (the weights are)
+            # The ring in row-major order of the padded frame: m full rows on top, two
+            # m-wide strips beside each frame row, m full rows below.
+            top, beside = m * (w + 2 * m), 2 * m * h
+            sides = values[top : top + beside].reshape(h, 2 * m)
+            focal[:m] = values[:top].reshape(m, w + 2 * m)
+            focal[m + h :] = values[top + beside :].reshape(m, w + 2 * m)
+            focal[m : m + h, :m] = sides[:, :m]
+            focal[m : m + h, m + w :] = sides[:, m:]
+            lit = values > 0
+            if lit.any():
+                ys, xs = y[lit] + m, x[lit] + m
+                boxes.append((int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1))
+        if not boxes:
+            return np.zeros((h, w), dtype=np.float32)
+        signal_box = (
+            min(b[0] for b in boxes),
+            max(b[1] for b in boxes),
+            min(b[2] for b in boxes),
+            max(b[3] for b in boxes),
+        )
+        return apply_optics(focal, self.psf, signal_box=signal_box, margin_px=m)
 
     def exposure_time_s(self, irradiance_w_m2: np.ndarray, object_mask: np.ndarray) -> float:
         """The frame's exposure time under the exposure rule (s).
@@ -224,14 +304,39 @@ class SensorChain:
         lit = irradiance_w_m2[object_mask]
         if lit.size > EXPOSURE_SAMPLE_PIXELS:
             lit = lit[:: -(-lit.size // EXPOSURE_SAMPLE_PIXELS)]
-        lit = lit[lit > 0]
-        if lit.size == 0:
+        level = _percentile_of(lit[lit > 0], rule.percentile)
+        if level is None:
             return rule.time_s
-        level = float(np.percentile(lit, rule.percentile))
         t = exposure_for_fill(
             level, self.detector, self.band_nm, rule.fill_fraction, self.effective_wavelength_m
         )
         return float(np.clip(t, rule.min_time_s, rule.max_time_s))
+
+    def region_fill(
+        self, irradiance_w_m2: np.ndarray, exposure_time_s: float, region: np.ndarray
+    ) -> float | None:
+        """The ``REGION_FILL_PERCENTILE`` percentile of the mean signal of the pixels in
+        ``region`` ((H, W) bool), as a fraction of full well: electrons from the irradiance
+        and the dark current over the exposure, before noise, fixed pattern and the well's
+        limit (so above 1 where the region saturates). None for an empty region."""
+        level = _percentile_of(irradiance_w_m2[region], REGION_FILL_PERCENTILE)
+        if level is None:
+            return None
+        d = self.detector
+        rate_e_per_s = (
+            d.quantum_efficiency * level * d.pixel_area_m2 / self.photon_energy_j
+            + d.dark_current_e_per_s
+        )
+        return rate_e_per_s * exposure_time_s / d.full_well_e
+
+    def saturated(self, dn: np.ndarray) -> np.ndarray:
+        """(H, W) bool: pixels within 3 read-noise sigma (+1 DN) of the full-well level, or
+        at the ADC's top code."""
+        d = self.detector
+        full_well_dn = min(d.full_well_dn, float(d.adc_max_dn))
+        # A pixel at full well reads full_well_dn give or take its read noise.
+        noise_dn = d.read_noise_e / d.conversion_gain_e_per_dn
+        return dn >= min(full_well_dn - 3.0 * noise_dn - 1.0, d.adc_max_dn)
 
     def photons_as_irradiance_w_m2(self, photons: np.ndarray, exposure_time_s: float) -> np.ndarray:
         """Mean photons per pixel over the exposure as the in-band irradiance (W m^-2) the
@@ -261,13 +366,10 @@ class SensorChain:
             self.effective_wavelength_m,
         )
         full_well_dn = min(self.detector.full_well_dn, float(self.detector.adc_max_dn))
-        # A pixel at full well reads full_well_dn give or take its read noise.
-        noise_dn = self.detector.read_noise_e / self.detector.conversion_gain_e_per_dn
-        saturated = dn >= min(full_well_dn - 3.0 * noise_dn - 1.0, self.detector.adc_max_dn)
         return DnImage(
             dn=dn,
             exposure_time_s=float(exposure_time_s),
-            saturated_pixel_count=int(np.count_nonzero(saturated)),
+            saturated_pixel_count=int(np.count_nonzero(self.saturated(dn))),
             star_count=int(star_count),
             bias_dn=self.detector.bias_dn,
             full_well_dn=full_well_dn,
