@@ -77,7 +77,8 @@ def _frame_with_stars(
     preset: str, irradiance: np.ndarray, repeats: int, threads: dict
 ) -> dict[str, object]:
     from satsight.sensor.star_catalog import load_star_catalog
-    from satsight.sensor.star_field import star_photons_image, stars_in_view
+    from satsight.sensor.star_field import stars_in_view
+    from satsight.sensor.star_stamps import star_photons_image
 
     height, width = irradiance.shape
     camera = (

@@ -205,9 +205,9 @@ def add_frame_stars(
     from satsight.sensor.star_field import (
         DEFAULT_STAMP_RADIUS_PX,
         star_photon_counts,
-        star_photons_image,
         stars_in_view,
     )
+    from satsight.sensor.star_stamps import star_photons_image
 
     # Stamps wide enough for the defocus disc and the jitter; stars are kept (and labelled)
     # only when their stamp reaches the frame.

@@ -14,7 +14,9 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.sensor import detector as det
+from satsight.sensor import limiting_magnitude as lm
 from satsight.sensor import star_field as sf
+from satsight.sensor import star_stamps as st
 from satsight.sensor.mtf import band_wavelengths_m, diffraction_mtf
 from satsight.sensor.optics import Optics
 from satsight.sensor.star_catalog import directions_icrs, load_star_catalog, unit_vectors
@@ -196,13 +198,13 @@ def test_image_conserves_photons_and_clips_at_edges(preset):
     optics = Optics.for_preset(preset)
     star = one_star(30.27, 25.61)
     n = sf.star_photon_counts(star.photon_flux_m2_s, optics, 0.05)[0]
-    img = sf.star_photons_image(star, (64, 80), optics, PIXEL_M, 0.05, BAND)
+    img = st.star_photons_image(star, (64, 80), optics, PIXEL_M, 0.05, BAND)
     assert img.dtype == np.float32 and img.shape == (64, 80)
     assert img.sum(dtype=np.float64) == pytest.approx(n, rel=1e-6)  # enclosed fraction 1
     # A star near the corner: only the in-frame part of its stamp lands.
     edge = one_star(-1.3, 2.2)
-    img = sf.star_photons_image(edge, (64, 80), optics, PIXEL_M, 0.05, BAND)
-    stamp = sf.psf_stamps(
+    img = st.star_photons_image(edge, (64, 80), optics, PIXEL_M, 0.05, BAND)
+    stamp = st.psf_stamps(
         np.array([-0.3]), np.array([0.2]), np.array([5772.0]), optics, PIXEL_M, BAND
     )[0]
     inside = stamp[8 - 2 :, 8 + 1 :].sum()  # rows y >= 0 (centre row 2), columns x >= 0
@@ -221,7 +223,7 @@ def test_psf_stamp_matches_pixel_integrated_airy():
     w = lam**-4 / np.expm1(const.h * const.c / (lam * const.k * 5772.0))
     kernel = psf_kernel(optics, lam, w, PIXEL_M / 9, 17 * 9, subsamples=5)
     binned = kernel.reshape(17, 9, 17, 9).sum(axis=(1, 3))
-    stamp = sf.psf_stamps(np.zeros(1), np.zeros(1), np.array([5772.0]), optics, PIXEL_M, BAND)[0]
+    stamp = st.psf_stamps(np.zeros(1), np.zeros(1), np.array([5772.0]), optics, PIXEL_M, BAND)[0]
     core = np.s_[6:11, 6:11]
     assert np.allclose(stamp[core], binned[core], rtol=0.02, atol=2e-4)
     assert stamp[8, 8] == pytest.approx(binned[8, 8], rel=0.015)
@@ -240,8 +242,8 @@ def test_defocused_star_stamp_spreads_its_light_over_the_blur_disc():
     sharp = Optics.for_preset("high_resolution")
     optics = Optics.for_preset("high_resolution", defocus_blur_diameter_m=d_m)
     t = np.array([5772.0, 5772.0])
-    focused = sf.psf_stamps(np.array([0.0, 0.3]), np.array([0.0, -0.2]), t, sharp, PIXEL_M, BAND)
-    stamps = sf.psf_stamps(np.array([0.0, 0.3]), np.array([0.0, -0.2]), t, optics, PIXEL_M, BAND)
+    focused = st.psf_stamps(np.array([0.0, 0.3]), np.array([0.0, -0.2]), t, sharp, PIXEL_M, BAND)
+    stamps = st.psf_stamps(np.array([0.0, 0.3]), np.array([0.0, -0.2]), t, optics, PIXEL_M, BAND)
     np.testing.assert_allclose(stamps.sum(axis=(1, 2)), 1.0, rtol=0, atol=1e-12)
     assert focused[0, 8, 8] > 0.8
     share = PIXEL_M**2 / (math.pi * d_m**2 / 4)
@@ -265,7 +267,7 @@ def test_centroid_equals_position_for_a_well_sampled_symmetric_psf():
     optics = Optics.for_preset("high_resolution", jitter_rms_rad=PIXEL_M / 3.0)
     y, x = np.mgrid[-16:17, -16:17]
     for dx, dy in [(0.0, 0.0), (0.3, -0.2), (-0.5, 0.45), (0.12, 0.37)]:
-        s = sf.psf_stamps(
+        s = st.psf_stamps(
             np.array([dx]),
             np.array([dy]),
             np.array([5772.0]),
@@ -288,7 +290,7 @@ def test_centroid_bias_of_undersampled_psf_matches_aliasing_theory():
     w /= w.sum()
     x = np.arange(-24, 25)
     for x0 in (0.1, 0.3, -0.45):
-        s = sf.psf_stamps(
+        s = st.psf_stamps(
             np.array([x0]),
             np.zeros(1),
             np.array([5772.0]),
@@ -314,7 +316,7 @@ def test_isolated_star_dn_reproduces_photon_count():
     params = det.DetectorParameters()
     star = one_star(20.4, 19.8, v=7.0)
     t = 0.05
-    photons = sf.star_photons_image(star, (40, 40), optics, PIXEL_M, t, BAND).astype(np.float64)
+    photons = st.star_photons_image(star, (40, 40), optics, PIXEL_M, t, BAND).astype(np.float64)
     n_true = sf.star_photon_counts(star.photon_flux_m2_s, optics, t)[0]
     assert photons.max() * params.quantum_efficiency < 0.5 * params.full_well_e
     mean_e = det.expected_electrons(
@@ -351,8 +353,8 @@ def test_limiting_magnitude_monte_carlo(preset):
     optics = Optics.for_preset(preset)
     params = det.DetectorParameters()
     t = 0.1
-    res = sf.limiting_magnitude_details(optics, params, t, BAND, snr=5.0)
-    assert res.v_mag == pytest.approx(sf.limiting_magnitude(optics, params, t, BAND))
+    res = lm.limiting_magnitude_details(optics, params, t, BAND, snr=5.0)
+    assert res.v_mag == pytest.approx(lm.limiting_magnitude(optics, params, t, BAND))
     k = 20_000
     photons = np.tile(res.fraction * res.photons, (k, 1))  # (K S, S)
     rng = np.random.default_rng(np.random.SeedSequence([5, k]))
@@ -379,7 +381,7 @@ def test_limiting_magnitude_scaling():
     params = det.DetectorParameters()
     for preset in ("high_resolution", "wide_field"):
         optics = Optics.for_preset(preset)
-        v = [sf.limiting_magnitude(optics, params, t) for t in (1e-3, 1e-2, 1e-1, 1.0)]
+        v = [lm.limiting_magnitude(optics, params, t) for t in (1e-3, 1e-2, 1e-1, 1.0)]
         steps = np.diff(v)
         assert np.all(steps > 1.2) and np.all(steps < 2.6)
 
@@ -409,12 +411,12 @@ def test_bad_input_raises(catalog):
     with pytest.raises(SatsightError, match="object_mask"):
         sf.stars_in_view(catalog, R, cam, EPOCH, V_SAT_M_S, object_mask=np.zeros((3, 3), bool))
     with pytest.raises(SatsightError, match="exposure_time_s"):
-        sf.star_photons_image(star, (20, 20), optics, PIXEL_M, -1.0, BAND)
+        st.star_photons_image(star, (20, 20), optics, PIXEL_M, -1.0, BAND)
     with pytest.raises(SatsightError, match="band"):
-        sf.star_photons_image(star, (20, 20), optics, PIXEL_M, 1.0, (400, 700))
+        st.star_photons_image(star, (20, 20), optics, PIXEL_M, 1.0, (400, 700))
     with pytest.raises(SatsightError, match="shape_hw"):
-        sf.star_photons_image(star, (20,), optics, PIXEL_M, 1.0, BAND)
+        st.star_photons_image(star, (20,), optics, PIXEL_M, 1.0, BAND)
     with pytest.raises(SatsightError, match="exposure_time_s"):
-        sf.limiting_magnitude(optics, det.DetectorParameters(), 0.0)
+        lm.limiting_magnitude(optics, det.DetectorParameters(), 0.0)
     with pytest.raises(SatsightError, match="snr"):
-        sf.limiting_magnitude(optics, det.DetectorParameters(), 1.0, snr=-1)
+        lm.limiting_magnitude(optics, det.DetectorParameters(), 1.0, snr=-1)

@@ -13,8 +13,8 @@ import math
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
 from satsight.sensor.chain import SensorChain
 from satsight.sensor.detector import exposure_for_fill
+from satsight.sensor.limiting_magnitude import limiting_magnitude_details
 from satsight.sensor.optics import focal_plane_irradiance_w_m2
-from satsight.sensor.star_field import limiting_magnitude_details
 
 #: Albedo of the reference grey target (typical of a satellite's mean albedo; assumption).
 REFERENCE_ALBEDO = 0.3
