@@ -1,5 +1,5 @@
 """Command line: ``satsight demo | generate | merge | validate | stats | export | plan |
-camera | ablate | bench | satellite``.
+camera | ablate | bench | satellite | materials``.
 
 A thin shell over ``satsight.generation``, ``satsight.dataset`` and the other stages, its
 commands in ``satsight.commands``: user errors print a message and exit with status 2,
@@ -12,7 +12,7 @@ import sys
 
 import click
 
-from satsight.commands import datasets, describe, measure
+from satsight.commands import datasets, describe, materials, measure
 from satsight.commands.shell import Interrupted, console, example_scenario_path
 from satsight.errors import SatsightError
 
@@ -37,6 +37,7 @@ for _command in (
     describe.satellite,
     measure.ablate,
     measure.bench,
+    materials.materials,
 ):
     cli.add_command(_command)
 
