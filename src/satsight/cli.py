@@ -1,5 +1,5 @@
 """Command line: ``satsight demo | generate | merge | validate | stats | export | plan |
-camera | ablate | bench | satellite | materials``.
+camera | ablate | bench | satellite | materials | fit-brdf``.
 
 A thin shell over ``satsight.generation``, ``satsight.dataset`` and the other stages, its
 commands in ``satsight.commands``: user errors print a message and exit with status 2,
@@ -38,6 +38,7 @@ for _command in (
     measure.ablate,
     measure.bench,
     materials.materials,
+    materials.fit_brdf,
 ):
     cli.add_command(_command)
 

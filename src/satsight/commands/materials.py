@@ -1,4 +1,5 @@
-"""Commands about surface materials: materials (the spectral library)."""
+"""Commands about surface materials: materials (the spectral library) and fit-brdf
+(reflection models fitted to measured BRDFs)."""
 
 from __future__ import annotations
 
@@ -83,3 +84,30 @@ def materials(band_text: str, qe: str, out_dir: Path) -> None:
     json_path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     png_path = plot_library_spectra(out_dir / "material_spectra.png", band)
     console.print(f"wrote {json_path} (with each spectrum's source) and {png_path}")
+
+
+@click.command("fit-brdf")
+@click.argument("measurements", type=click.Path(path_type=Path))
+@click.option(
+    "--model",
+    required=True,
+    type=click.Choice(["improved_phong", "phong", "ggx"]),
+    help="reflection model to fit (paper Eq. 17, Eq. 16, or the GGX material model)",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    default=Path("out/brdf_fit"),
+    show_default=True,
+    help="folder for the fitted parameters (YAML) and the plane-of-incidence plot",
+)
+def fit_brdf(measurements: Path, model: str, out_dir: Path) -> None:
+    """Fit a reflection model to the measured BRDF samples in MEASUREMENTS (CSV: theta_i_deg,
+    phi_i_deg, theta_o_deg, phi_o_deg, wavelength_nm or band, brdf_per_sr); print the
+    parameters with their uncertainties, MSE, PSNR and angular error."""
+    from satsight.brdf.fit import fit_brdf_command
+
+    with console.status(f"fitting {model} to {measurements}"):
+        report = fit_brdf_command(measurements, model, out_dir)
+    click.echo(report.table())
