@@ -25,11 +25,15 @@ from satsight.frames.rigid import RigidTransform
 from satsight.lighting.bodies import MOON_MEAN_RADIUS_M, environment_light_field
 from satsight.lighting.light_field import LightField
 from satsight.lighting.scene_bodies import earth_body, moon_body
+from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage, SunLight
 from satsight.render.renderer import Renderer
+from satsight.scene.band_reflectance import library_materials
 from satsight.scene.loading import load_mesh
+from satsight.scene.material_library import LIBRARY_PREFIX
+from satsight.scene.materials import FIRST_MATERIALS
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.procedural import generate_satellite
 from satsight.sensor.chain import DnImage, SensorChain, blur_radius_px, exposure_regions
@@ -48,16 +52,23 @@ CONVENTIONS = {
 }
 
 
-def build_target(config: TargetConfig) -> TargetMesh:
-    """The target mesh a scenario asks for (procedural or loaded from a file)."""
+def build_target(config: TargetConfig, band_nm: tuple[float, float] | None = None) -> TargetMesh:
+    """The target mesh a scenario asks for (procedural or loaded from a file). Library
+    materials a mesh asks for (``library:NAME``) take their colour from the band
+    ``band_nm`` (the scenario's ``sun.band_nm``; default 450-900 nm)."""
     p, m = config.procedural, config.mesh
     if p is not None:
         return generate_satellite(
             p.satellite_class, p.seed, smooth_normals=p.smooth_normals, textures=p.textures
         )
+    requested = [v for v in m.materials.values() if v.startswith(LIBRARY_PREFIX)]
+    pool = {**FIRST_MATERIALS}
+    if requested:
+        pool.update(library_materials(requested, band_nm or DEFAULT_BAND_NM))
     return load_mesh(
         m.path,
         scale_m=m.scale_m,
+        materials=pool,
         builtin_materials=m.materials,
         crease_angle_deg=m.crease_angle_deg,
     )
@@ -346,7 +357,7 @@ class FrameEngine:
 
     def __init__(self, scenario: Scenario):
         self.scenario = scenario
-        self.mesh = build_target(scenario.target)
+        self.mesh = build_target(scenario.target, scenario.sun.band_nm)
         self.camera = scenario.camera.build()
         self.track, self.plan_indices = planned_frames(scenario, self.mesh)
         self.sensor = build_sensor(scenario)

@@ -36,7 +36,7 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
     from satsight.poses.plan_plots import plan_table_rows, write_plan_csv, write_plan_plots
 
     scenario = load_scenario(config)
-    mesh = build_target(scenario.target)
+    mesh = build_target(scenario.target, scenario.sun.band_nm)
     track = plan_track(scenario, mesh.center_m, mesh.bounding_radius_m)
     rendered = frames_to_render(scenario, track)
     rows = plan_table_rows(track, with_epoch=False)

@@ -125,10 +125,12 @@ class ProceduralTargetConfig(_Strict):
 class MeshTargetConfig(_Strict):
     """A mesh file (``satsight.scene.loading.load_mesh``).
 
-    materials: {part name or the file's material name: built-in material name}; those
-    parts take the built-in material instead of the file's values (which otherwise win,
-    even where a file material is named like a built-in one). crease_angle_deg: parts the
-    file gives no normals are smoothed across edges flatter than this (0: flat triangles).
+    materials: {part name or the file's material name: built-in material name, or
+    ``library:NAME`` for a material of the spectral library (``satsight materials``), its
+    colour integrated over the scenario's band}; those parts take that material instead of
+    the file's values (which otherwise win, even where a file material is named like a
+    built-in one). crease_angle_deg: parts the file gives no normals are smoothed across
+    edges flatter than this (0: flat triangles).
     """
 
     path: Path
@@ -139,13 +141,17 @@ class MeshTargetConfig(_Strict):
     @field_validator("materials")
     @classmethod
     def _known_builtins(cls, value: dict[str, str]) -> dict[str, str]:
+        from satsight.scene.material_library import LIBRARY_PREFIX, list_materials
         from satsight.scene.materials import FIRST_MATERIALS
 
-        unknown = sorted({v for v in value.values() if v not in FIRST_MATERIALS})
+        library = list_materials()
+        known = set(FIRST_MATERIALS) | {LIBRARY_PREFIX + name for name in library}
+        unknown = sorted({v for v in value.values() if v not in known})
         if unknown:
             raise ValueError(
-                f"unknown built-in material(s) {', '.join(unknown)}; "
-                f"choose from {', '.join(sorted(FIRST_MATERIALS))}"
+                f"unknown material(s) {', '.join(unknown)}; choose a built-in "
+                f"({', '.join(sorted(FIRST_MATERIALS))}) or a library material "
+                f"({', '.join(LIBRARY_PREFIX + name for name in library)})"
             )
         return value
 

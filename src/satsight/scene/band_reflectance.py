@@ -32,7 +32,8 @@ mapping neglects that (a few per cent of F0).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -43,7 +44,12 @@ from satsight.camera.quantum_efficiency import (
 )
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, check_band_nm, load_e490
-from satsight.scene.material_library import LibraryEntry, entry_spectrum, load_entry
+from satsight.scene.material_library import (
+    LIBRARY_PREFIX,
+    LibraryEntry,
+    entry_spectrum,
+    load_entry,
+)
 from satsight.scene.materials import Material
 from satsight.scene.spectra import hemispherical_fresnel
 
@@ -199,3 +205,19 @@ def material_from_entry(
         source=source,
         **optional,
     )
+
+
+def library_materials(
+    names: Iterable[str],
+    band_nm: tuple[float, float] = DEFAULT_BAND_NM,
+    qe: str | QuantumEfficiency = DEFAULT_QE,
+) -> dict[str, Material]:
+    """{``library:NAME``: its Material for ``band_nm``} for each requested library name (with
+    or without the ``library:`` prefix); the Material is named with the prefix, as the
+    scenario refers to it."""
+    out = {}
+    for raw in names:
+        name = raw.removeprefix(LIBRARY_PREFIX)
+        key = LIBRARY_PREFIX + name
+        out[key] = replace(material_from_entry(name, band_nm, qe), name=key)
+    return out

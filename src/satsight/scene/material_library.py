@@ -101,6 +101,11 @@ class LibraryEntry:
         return "table" if self.table_file is not None else "computed"
 
 
+#: How a scenario names a library material where it could also name a built-in one
+#: (``target.mesh.materials: {part: "library:gold"}``): the two sets share names (``cfrp``).
+LIBRARY_PREFIX = "library:"
+
+
 def library_dir() -> Traversable:
     """Where the library files lie in the installed package."""
     return resources.files("satsight.scene") / "library"

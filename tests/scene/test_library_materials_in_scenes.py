@@ -1,0 +1,74 @@
+"""Library materials in a scenario: ``target.mesh.materials: {part: "library:NAME"}``.
+
+The part takes the library material with its colour integrated over the scenario's band,
+so changing the band changes it the way the band integration says.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from satsight.config.scenario import TargetConfig
+from satsight.pipeline import build_target
+from satsight.scene.band_reflectance import material_from_entry
+
+OBJ = """mtllib plate.mtl
+v 0 0 0
+v 1 0 0
+v 0 1 0
+v 1 1 0
+o panel
+usemtl grey
+f 1 2 3
+o foil
+usemtl grey
+f 2 4 3
+"""
+MTL = "newmtl grey\nKd 0.5 0.5 0.5\n"
+
+
+@pytest.fixture
+def plate(tmp_path: Path) -> Path:
+    (tmp_path / "plate.mtl").write_text(MTL, encoding="utf-8")
+    path = tmp_path / "plate.obj"
+    path.write_text(OBJ, encoding="utf-8")
+    return path
+
+
+def _material_of(mesh, part: str):
+    index = mesh.part_names.index(part)
+    return mesh.materials[mesh.part_materials[index]]
+
+
+def test_a_part_takes_the_library_material_for_the_scenario_band(plate: Path) -> None:
+    config = TargetConfig(mesh={"path": plate, "materials": {"foil": "library:gold"}})
+    for band in ((450.0, 900.0), (500.0, 650.0)):
+        mesh = build_target(config, band)
+        gold = _material_of(mesh, "foil")
+        expected = material_from_entry("gold", band)
+        assert gold.name == "library:gold"
+        np.testing.assert_allclose(gold.base_color_rgb, expected.base_color_rgb, rtol=0, atol=0)
+        assert (gold.metallic, gold.roughness, gold.ior) == (
+            expected.metallic,
+            expected.roughness,
+            expected.ior,
+        )
+        # The other part keeps the file's values.
+        assert _material_of(mesh, "panel").base_color_rgb == pytest.approx((0.5, 0.5, 0.5))
+    # Gold is yellow over 450-900 nm (its blue third below 500 nm is dark); over 500-650 nm
+    # its colour differs: the band decides.
+    wide = _material_of(build_target(config, (450.0, 900.0)), "foil").base_color_rgb
+    narrow = _material_of(build_target(config, (500.0, 650.0)), "foil").base_color_rgb
+    assert wide[2] < wide[0]
+    assert not np.allclose(wide, narrow, atol=1e-3)
+
+
+def test_unknown_library_names_are_refused_with_the_choices() -> None:
+    with pytest.raises(ValidationError) as error:
+        TargetConfig(mesh={"path": "x.obj", "materials": {"foil": "library:unobtainium"}})
+    message = str(error.value)
+    assert "library:unobtainium" in message and "library:gold" in message
