@@ -126,7 +126,7 @@ def run_ablation(
             "need 1 <= samples_per_pixel <= reference_samples_per_pixel, got "
             f"{samples_per_pixel} and {reference_samples_per_pixel}"
         )
-    mesh = build_target(scenario.target)
+    mesh = build_target(scenario.target, scenario.sun.band_nm)
     camera = ablation_camera(scenario.camera.build(), width_px)
     reference_scenario = scenario.model_copy(
         update={"render": scenario.render.model_copy(update={"sh_order": REFERENCE_SH_ORDER})}
