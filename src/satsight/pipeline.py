@@ -30,7 +30,7 @@ from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage, SunLight
 from satsight.render.renderer import Renderer
-from satsight.scene.band_reflectance import library_materials
+from satsight.scene.band_reflectance import builtins_from_library, library_materials
 from satsight.scene.loading import load_mesh
 from satsight.scene.material_library import LIBRARY_PREFIX
 from satsight.scene.materials import FIRST_MATERIALS
@@ -54,12 +54,18 @@ CONVENTIONS = {
 
 def build_target(config: TargetConfig, band_nm: tuple[float, float] | None = None) -> TargetMesh:
     """The target mesh a scenario asks for (procedural or loaded from a file). Library
-    materials a mesh asks for (``library:NAME``) take their colour from the band
-    ``band_nm`` (the scenario's ``sun.band_nm``; default 450-900 nm)."""
+    materials (a mesh part's ``library:NAME``, or a procedural satellite's ``materials:
+    library``) take their colour from the band ``band_nm`` (the scenario's ``sun.band_nm``;
+    default 450-900 nm)."""
     p, m = config.procedural, config.mesh
     if p is not None:
+        library = p.materials == "library"
         return generate_satellite(
-            p.satellite_class, p.seed, smooth_normals=p.smooth_normals, textures=p.textures
+            p.satellite_class,
+            p.seed,
+            smooth_normals=p.smooth_normals,
+            textures=p.textures,
+            materials=builtins_from_library(band_nm or DEFAULT_BAND_NM) if library else None,
         )
     requested = [v for v in m.materials.values() if v.startswith(LIBRARY_PREFIX)]
     pool = {**FIRST_MATERIALS}

@@ -72,3 +72,33 @@ def test_unknown_library_names_are_refused_with_the_choices() -> None:
         TargetConfig(mesh={"path": "x.obj", "materials": {"foil": "library:unobtainium"}})
     message = str(error.value)
     assert "library:unobtainium" in message and "library:gold" in message
+
+
+def test_procedural_satellites_take_the_library_materials_when_asked() -> None:
+    from satsight.scene.band_reflectance import BUILTIN_LIBRARY_MATCH
+    from satsight.scene.materials import FIRST_MATERIALS
+
+    band = (450.0, 900.0)
+    builtin = build_target(TargetConfig(procedural={"satellite_class": "two_wings", "seed": 2}))
+    library = build_target(
+        TargetConfig(
+            procedural={"satellite_class": "two_wings", "seed": 2, "materials": "library"}
+        ),
+        band,
+    )
+    # Same geometry and part materials by name; the definitions differ where matched.
+    np.testing.assert_array_equal(builtin.vertices_m, library.vertices_m)
+    assert builtin.part_materials == library.part_materials
+    for name in set(library.part_materials):
+        got = library.materials[name]
+        if name in BUILTIN_LIBRARY_MATCH:
+            expected = material_from_entry(BUILTIN_LIBRARY_MATCH[name], band)
+            assert got.base_color_rgb == expected.base_color_rgb and got.name == name
+            assert got.roughness == expected.roughness
+        else:
+            assert got == FIRST_MATERIALS[name]
+    # The solar-cell texture's colours follow the cell material.
+    cells = library.part_names.index(next(n for n in library.part_names if n.endswith("_cells")))
+    a = builtin.part_textures[cells].base_color.pixels
+    b = library.part_textures[cells].base_color.pixels
+    assert a.shape == b.shape and not np.array_equal(a, b)

@@ -159,7 +159,7 @@ def test_scenario_key_names_builtin_materials() -> None:
     config = MeshTargetConfig(path="x.obj", materials={"white_paint": "white_paint"})
     assert config.materials == {"white_paint": "white_paint"}
     assert config.crease_angle_deg == 30.0
-    with pytest.raises(ValueError, match="unknown built-in material"):
+    with pytest.raises(ValueError, match="unknown material"):
         MeshTargetConfig(path="x.obj", materials={"a": "unobtainium"})
 
 

@@ -105,12 +105,15 @@ class ProceduralTargetConfig(_Strict):
 
     smooth_normals: crease-angle shading normals on curved parts (dish, cylinders).
     textures: solar-cell grids, MLI crinkle and radiator strips.
+    materials: ``builtin`` (the typed built-in values) or ``library`` (the spectral
+    library's materials for the scenario's band, ``band_reflectance.BUILTIN_LIBRARY_MATCH``).
     """
 
     satellite_class: str = "two_wings"
     seed: int = Field(default=0, ge=0)
     smooth_normals: bool = True
     textures: bool = True
+    materials: Literal["builtin", "library"] = "builtin"
 
     @model_validator(mode="after")
     def _known_class(self) -> ProceduralTargetConfig:

@@ -50,7 +50,7 @@ from satsight.scene.material_library import (
     entry_spectrum,
     load_entry,
 )
-from satsight.scene.materials import Material
+from satsight.scene.materials import FIRST_MATERIALS, Material
 from satsight.scene.spectra import hemispherical_fresnel
 
 _NM = 1e-9
@@ -220,4 +220,34 @@ def library_materials(
         name = raw.removeprefix(LIBRARY_PREFIX)
         key = LIBRARY_PREFIX + name
         out[key] = replace(material_from_entry(name, band_nm, qe), name=key)
+    return out
+
+
+#: The library material that stands for each built-in part material of the procedural
+#: satellites (``target.procedural.materials: library``). Built-ins without a counterpart
+#: (panel substrate, black metal, lens, instrument grey, the ideal Lambertian white) keep
+#: their values.
+BUILTIN_LIBRARY_MATCH: dict[str, str] = {
+    "mli_gold": "mli_aluminised_kapton",
+    "mli_silver": "aluminium_teflon",
+    "solar_cell": "gaas_solar_cell",
+    "white_paint": "white_paint_az93",
+    "antenna_white": "white_paint_az93",
+    "black_crinkle": "black_paint_z306",
+    "brushed_aluminium": "aluminium",
+    "titanium_hinge": "titanium",
+    "cfrp": "cfrp",
+}
+
+
+def builtins_from_library(
+    band_nm: tuple[float, float] = DEFAULT_BAND_NM,
+    qe: str | QuantumEfficiency = DEFAULT_QE,
+) -> dict[str, Material]:
+    """The built-in material names with the library's materials for ``band_nm`` where
+    ``BUILTIN_LIBRARY_MATCH`` has one (named as the built-in, so meshes keep their part
+    materials), the built-in values elsewhere."""
+    out = dict(FIRST_MATERIALS)
+    for builtin, name in BUILTIN_LIBRARY_MATCH.items():
+        out[builtin] = replace(material_from_entry(name, band_nm, qe), name=builtin)
     return out

@@ -29,12 +29,14 @@ grid, the MLI bus its crinkle and the radiators their strips
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import trimesh
 
 from satsight.errors import SatsightError
 from satsight.scene import procedural_textures as pt
-from satsight.scene.materials import FIRST_MATERIALS
+from satsight.scene.materials import FIRST_MATERIALS, Material
 from satsight.scene.mesh import PartSurface, TargetMesh, merge_parts
 from satsight.scene.normals import DEFAULT_CREASE_ANGLE_DEG, box_uv
 
@@ -116,9 +118,14 @@ class _Parts:
     """Ordered (name, material, vertices_m, faces, PartSurface | None) parts with unique
     names; ``textures`` (a generator, or None) switches the parts' textures on."""
 
-    def __init__(self, textures: np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        textures: np.random.Generator | None = None,
+        materials: Mapping[str, Material] = FIRST_MATERIALS,
+    ) -> None:
         self.items: list[tuple] = []
         self.texture_rng = textures
+        self.materials = materials
         self._cells: dict[tuple[float, float], pt.SurfaceTextures] = {}
 
     def add(
@@ -136,7 +143,7 @@ class _Parts:
         """The cell tile of this pitch (made once, shared by the panels that use it)."""
         key = (round(pitch_uv_m[0], 9), round(pitch_uv_m[1], 9))
         if key not in self._cells:
-            self._cells[key] = pt.solar_cell_textures(pitch_uv_m)
+            self._cells[key] = pt.solar_cell_textures(pitch_uv_m, self.materials)
         return self._cells[key]
 
 
@@ -186,7 +193,7 @@ def _add_bus(parts: _Parts, rng: np.random.Generator, size_m: np.ndarray) -> Non
         if parts.texture_rng is not None:
             period = (pt.RADIATOR_STRIP_PERIOD_M, pt.RADIATOR_STRIP_PERIOD_M)
             origin = (0.0, -0.4 * by, rad_z[0])
-            panel, surface = _textured(panel, pt.radiator_textures(), period, origin)
+            panel, surface = _textured(panel, pt.radiator_textures(parts.materials), period, origin)
         parts.add(f"radiator_{k}", "white_paint", panel, surface)
     crinkle = _box((0.9 * bx, 0.9 * by, 0.01), (0, 0, -0.5 * bz - 0.005))
     parts.add("bus_crinkle", "black_crinkle", crinkle)
@@ -380,7 +387,11 @@ def _add_body_cells(parts: _Parts, size_m: np.ndarray) -> None:
 
 
 def generate_satellite(
-    satellite_class: str, seed: int, smooth_normals: bool = False, textures: bool = False
+    satellite_class: str,
+    seed: int,
+    smooth_normals: bool = False,
+    textures: bool = False,
+    materials: Mapping[str, Material] | None = None,
 ) -> TargetMesh:
     """A random satellite of ``satellite_class`` (one of ``SATELLITE_CLASSES``), from ``seed``.
 
@@ -391,6 +402,9 @@ def generate_satellite(
     textures: cell grids, MLI crinkle and radiator strips (same geometry either way). Both
     are off here, so that the bare call keeps giving the flat, untextured mesh; scenarios
     switch them on by default (``target.procedural.smooth_normals`` / ``textures``).
+    materials: the definitions of the built-in material names the parts use (default
+    ``FIRST_MATERIALS``; ``band_reflectance.builtins_from_library`` gives them from the
+    spectral library for a band). The textures' colours follow them.
     """
     if satellite_class not in SATELLITE_CLASSES:
         raise SatsightError(
@@ -400,7 +414,11 @@ def generate_satellite(
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise SatsightError(f"seed must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(int(seed))
-    parts = _Parts(np.random.default_rng([int(seed), 1]) if textures else None)
+    library = FIRST_MATERIALS if materials is None else materials
+    missing = sorted(set(FIRST_MATERIALS) - set(library))
+    if missing:
+        raise SatsightError(f"materials must define every built-in name; missing {missing}")
+    parts = _Parts(np.random.default_rng([int(seed), 1]) if textures else None, library)
     if satellite_class == "body_mounted":
         size = np.array([rng.uniform(1.4, 2.6), rng.uniform(1.4, 2.6), rng.uniform(1.8, 3.0)])
     else:
@@ -420,7 +438,7 @@ def generate_satellite(
     items = _rescaled(parts.items)
     return merge_parts(
         items,
-        materials=FIRST_MATERIALS,
+        materials=library,
         name=f"{satellite_class}-seed{seed}",
         crease_angle_deg=DEFAULT_CREASE_ANGLE_DEG if smooth_normals else None,
     )

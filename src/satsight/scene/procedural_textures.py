@@ -25,6 +25,7 @@ surface. Values not taken from a cited source are assumptions, like the library'
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -79,7 +80,9 @@ def cell_pitch_m(length_m: float, cell_m: float) -> float:
     return length_m / max(1, round(length_m / cell_m))
 
 
-def solar_cell_textures(pitch_uv_m: tuple[float, float]) -> SurfaceTextures:
+def solar_cell_textures(
+    pitch_uv_m: tuple[float, float], materials: Mapping[str, Material] = FIRST_MATERIALS
+) -> SurfaceTextures:
     """The tile of one cell: u along the busbar over ``pitch_uv_m[0]``, v across it."""
     s = _SUBSAMPLES
     width, height = CELL_TILE_PX
@@ -94,18 +97,18 @@ def solar_cell_textures(pitch_uv_m: tuple[float, float]) -> SurfaceTextures:
     labels = np.zeros(uu.shape, dtype=np.int64)  # 0 cell
     labels[finger | busbar] = 1  # silver
     labels[in_gap] = 2  # substrate between cells
-    materials = [FIRST_MATERIALS["solar_cell"], _SILVER, FIRST_MATERIALS["panel_substrate"]]
-    return _material_tiles(labels, materials)
+    tiles = [materials["solar_cell"], _SILVER, materials["panel_substrate"]]
+    return _material_tiles(labels, tiles)
 
 
-def radiator_textures() -> SurfaceTextures:
+def radiator_textures(materials: Mapping[str, Material] = FIRST_MATERIALS) -> SurfaceTextures:
     """One strip period along u: white paint, then a strip of silvered tape."""
     s = _SUBSAMPLES
     width, height = 64, 4
     u = (np.arange(width * s) + 0.5) / (width * s) * RADIATOR_STRIP_PERIOD_M
     uu = np.broadcast_to(u, (height * s, width * s))
     labels = (uu >= RADIATOR_STRIP_PERIOD_M - RADIATOR_STRIP_WIDTH_M).astype(np.int64)
-    return _material_tiles(labels, [FIRST_MATERIALS["white_paint"], _TAPE])
+    return _material_tiles(labels, [materials["white_paint"], _TAPE])
 
 
 def mli_crinkle_textures(rng: np.random.Generator) -> SurfaceTextures:
