@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 
@@ -10,7 +11,14 @@ import numpy as np
 import pytest
 import yaml
 
-from satsight.ablation import VARIANTS, ablation_camera, image_metrics, run_ablation
+from satsight.ablation import (
+    FITTED_VARIANTS,
+    VARIANTS,
+    ablation_camera,
+    fitted_phong_meshes,
+    image_metrics,
+    run_ablation,
+)
 from satsight.camera.pinhole import PinholeCamera
 from satsight.cli import main
 from satsight.config.scenario import Scenario
@@ -92,6 +100,43 @@ def test_ablate_writes_table_and_figure(ablation_dir: Path):
         assert 0.0 <= float(row["mean_angular_error_deg"]) < 90.0
         assert int(row["frames"]) == 1
     assert (ablation_dir / "ablation.png").stat().st_size > 10_000
+    fits = json.loads((ablation_dir / "phong_fits.json").read_text(encoding="utf-8"))["fits"]
+    assert {row["model"] for row in fits} == set(FITTED_VARIANTS.values())
+    for row in fits:
+        assert all(kd + ks <= 1.0 for kd, ks in zip(row["kd_rgb"], row["ks_rgb"], strict=True))
+
+
+def test_fitted_variants_render_with_coefficients_fitted_to_each_part(llvm_variant):
+    """improved_phong and phong render every part with the coefficients fitted to its GGX
+    material (the renderer's per-part tables hold them); the *_mapped variants and the
+    reference keep the scenario's materials."""
+    from satsight.brdf.reference_fit import fit_phong_to_ggx
+    from satsight.pipeline import build_target
+    from satsight.render.settings import DIRECT_SUN_ONLY
+    from satsight.render.surface import SurfaceModel
+
+    scenario = Scenario.model_validate(
+        {
+            "name": "fitted",
+            "target": {"procedural": {"satellite_class": "one_wing", "seed": 4}},
+            "frames": [{"distance_km": 0.05}],
+        }
+    )
+    mesh = build_target(scenario.target)
+    meshes, fits = fitted_phong_meshes(mesh, "schlick")
+    assert set(meshes) == set(FITTED_VARIANTS) and set(fits) == set(mesh.part_materials)
+    for variant, model in FITTED_VARIANTS.items():
+        parts = [meshes[variant].part_material(i) for i in range(len(mesh.part_names))]
+        expected = [fit_phong_to_ggx(mesh.part_material(i)).fits[model].coefficients
+                    for i in range(len(mesh.part_names))]  # fmt: skip
+        assert [m.phong for m in parts] == expected
+        assert all(m.phong != m.mapped_phong_coefficients for m in parts)
+        surface = SurfaceModel(parts, DIRECT_SUN_ONLY.with_(brdf=model))
+        kd = np.array(surface._params.kd).T  # (parts, 3)
+        np.testing.assert_allclose(kd, [c.kd_rgb for c in expected], rtol=1e-6, atol=1e-7)
+        g = np.array(surface._params.g)
+        np.testing.assert_allclose(g, [c.gloss_exponent_g for c in expected], rtol=1e-6)
+    assert all(m.phong is None for m in mesh.materials.values())
 
 
 def test_ablate_ranks_the_noise_floor_first(ablation_dir: Path):

@@ -5,7 +5,15 @@ metallic/roughness/IOR model of Eq. 18-20 that defines the materials, the exact 
 Sun, the sampled environment expanded to SH order 8, no inter-reflection unless asked for,
 many samples per pixel) and then with each **variant**, which changes one thing:
 
-* ``improved_phong`` / ``phong``: the reflection model (Eq. 17 / Eq. 16), exact Sun;
+* ``improved_phong`` / ``phong``: the reflection model (Eq. 17 / Eq. 16), exact Sun, each
+  part's coefficients FITTED to its GGX material (``satsight.brdf.reference_fit``: a
+  weighted least-squares fit of the Phong model to the material's GGX BRDF over the
+  hemisphere of incidence and viewing directions), so the error measures what each Phong
+  form can do at its best;
+* ``improved_phong_mapped`` / ``phong_mapped``: the same models with the coefficients
+  derived from the GGX parameters by the heuristic mapping of ``satsight.scene.materials``
+  (``Material.mapped_phong_coefficients``), which renders what a scenario with
+  ``render.brdf: phong`` or ``improved_phong`` shows;
 * ``sh3_sun`` / ``sh4_sun``: the Sun replaced by its SH expansion of order 3 / 4 (Eq. 10),
   the environment truncated to the same order;
 * ``exact``: the reference model itself at the variants' sample count (the noise floor).
@@ -26,9 +34,10 @@ Metrics per variant, averaged over frames, on the pixels where either image sees
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,14 +47,20 @@ from satsight.config.scenario import Scenario
 from satsight.errors import SatsightError
 from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings
+from satsight.scene.mesh import TargetMesh
 
 VARIANTS: dict[str, dict] = {
     "improved_phong": {"brdf": "improved_phong"},
     "phong": {"brdf": "phong"},
+    "improved_phong_mapped": {"brdf": "improved_phong"},
+    "phong_mapped": {"brdf": "phong"},
     "sh3_sun": {"sun": "sh", "sh_order": 3},
     "sh4_sun": {"sun": "sh", "sh_order": 4},
     "exact": {},
 }
+# Variants whose parts render with Phong coefficients fitted to their GGX materials: the
+# variant's name -> the fitted model. The other Phong variants use the mapped coefficients.
+FITTED_VARIANTS: dict[str, str] = {"improved_phong": "improved_phong", "phong": "phong"}
 # The environment (earthshine, moonshine) of the reference and of the non-SH variants is
 # expanded to this order; the sh3/sh4 variants truncate Sun and environment alike.
 REFERENCE_SH_ORDER = 8
@@ -100,6 +115,53 @@ def ablation_camera(camera: PinholeCamera, width_px: int | None) -> PinholeCamer
 class AblationResult:
     rows: list[dict]
     images: dict[str, list[np.ndarray]]  # "reference" and each variant: one image per frame
+    # The Phong fits of the materials the target's parts use, by material name
+    # (``satsight.brdf.reference_fit.PhongModelFits``).
+    fits: dict = field(default_factory=dict)
+
+
+def fitted_phong_meshes(mesh: TargetMesh, masking: str) -> tuple[dict[str, TargetMesh], dict]:
+    """({variant: the mesh with each used material's ``phong`` set to that variant's fit},
+    {material name: its ``PhongModelFits``}) for the ``FITTED_VARIANTS``.
+
+    masking: the GGX masking term of the reference, which the fits sample."""
+    from satsight.brdf.reference_fit import fit_phong_to_ggx
+
+    used = sorted(set(mesh.part_materials))
+    fits = {name: fit_phong_to_ggx(mesh.materials[name], masking) for name in used}
+    meshes = {}
+    for variant, model in FITTED_VARIANTS.items():
+        materials = dict(mesh.materials)
+        materials.update({name: fits[name].material_for(model) for name in used})
+        meshes[variant] = dataclasses.replace(mesh, materials=materials)
+    return meshes, fits
+
+
+def fit_rows(fits: dict) -> list[dict]:
+    """One row per (material, fitted model): the fitted coefficients (kd, ks per channel,
+    g, a, b, c) and the fit's metrics against the material's GGX BRDF."""
+    rows = []
+    for name, result in fits.items():
+        for model, fit in result.fits.items():
+            c = fit.coefficients
+            rows.append(
+                {
+                    "material": name,
+                    "model": model,
+                    "kd_rgb": list(c.kd_rgb),
+                    "ks_rgb": list(c.ks_rgb),
+                    "g": c.gloss_exponent_g,
+                    "a": c.fresnel_exponent_a,
+                    "b": c.lobe_decay_b,
+                    "c": c.diffuse_exponent_c,
+                    "psnr_db": fit.fit.metrics.psnr_db,
+                    "spectral_angle_deg": fit.fit.metrics.spectral_angle_deg,
+                    "weighted_relative_rms": fit.weighted_relative_rms,
+                    "weighted_spectral_angle_deg": fit.weighted_spectral_angle_deg,
+                    "geometries": result.n_geometries,
+                }
+            )
+    return rows
 
 
 def run_ablation(
@@ -162,9 +224,10 @@ def run_ablation(
     }
     for name, change in VARIANTS.items():
         runs[name] = base.with_(samples_per_pixel=samples_per_pixel, **change)
+    fitted_meshes, fits = fitted_phong_meshes(mesh, base.ggx_masking)
     images: dict[str, list[np.ndarray]] = {}
     for name, settings in runs.items():
-        renderer = Renderer(mesh, settings, scenario.render.variant)
+        renderer = Renderer(fitted_meshes.get(name, mesh), settings, scenario.render.variant)
         images[name] = []
         for index, (plan_index, light) in enumerate(zip(indices, lights, strict=True)):
             pose = track.cam_from_body(plan_index)
@@ -192,7 +255,7 @@ def run_ablation(
                 "frames": len(metrics),
             }
         )
-    return AblationResult(rows, images)
+    return AblationResult(rows, images, fits)
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:

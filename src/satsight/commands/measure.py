@@ -19,7 +19,8 @@ from satsight.errors import SatsightError
     "out_dir",
     type=click.Path(path_type=Path),
     required=True,
-    help="folder for ablation.csv and ablation.png (created; must be empty unless --overwrite)",
+    help="folder for ablation.csv, ablation.png and phong_fits.json (created; must be empty "
+    "unless --overwrite)",
 )
 @click.option("--overwrite", is_flag=True, help="replace the output folder if it exists")
 @click.option(
@@ -64,10 +65,13 @@ def ablate(
     bounces: int,
     max_frames: int | None,
 ) -> None:
-    """Ablate the radiative model on CONFIG's frames (paper Table 4): MSE, PSNR, angle."""
+    """Ablate the radiative model on CONFIG's frames (paper Table 4): MSE, PSNR, angle.
+
+    improved_phong and phong use coefficients fitted to each part's GGX material;
+    the *_mapped variants the heuristic mapping from the GGX parameters."""
     from rich.table import Table
 
-    from satsight.ablation import VARIANTS, run_ablation, write_csv, write_figure
+    from satsight.ablation import VARIANTS, fit_rows, run_ablation, write_csv, write_figure
     from satsight.config.scenario import load_scenario
     from satsight.dataset.staging import check_output_folder, staged_folder
 
@@ -104,6 +108,17 @@ def ablate(
     frames = planned[0]
     with staged_folder(out_dir, overwrite) as root:
         write_csv(root / "ablation.csv", result.rows)
+        (root / "phong_fits.json").write_text(
+            json.dumps(
+                {
+                    "kind": "model-to-model fits of the Phong models to each part's GGX "
+                    "material (satsight.brdf.reference_fit), not measurements",
+                    "fits": fit_rows(result.fits),
+                },
+                indent=2,
+            ),
+            encoding="utf-8",
+        )
         write_figure(
             root / "ablation.png",
             result,
@@ -121,7 +136,14 @@ def ablate(
             f"{row['mean_angular_error_deg']:.3f}",
         )
     Console().print(table)
-    console.print(f"wrote {out_dir / 'ablation.csv'} and {out_dir / 'ablation.png'}")
+    console.print(
+        "improved_phong, phong: coefficients fitted to each part's GGX material; "
+        "*_mapped: derived from the GGX parameters by the heuristic mapping"
+    )
+    console.print(
+        f"wrote {out_dir / 'ablation.csv'}, {out_dir / 'ablation.png'} and "
+        f"{out_dir / 'phong_fits.json'}"
+    )
 
 
 @click.command()

@@ -31,10 +31,15 @@ class SurfaceHit:
 
 
 def _phong_tables(materials: Sequence[Material]) -> dict[str, np.ndarray]:
+    """The Phong models' coefficients per part (``Material.phong_coefficients``)."""
+    coefficients = [m.phong_coefficients for m in materials]
     return {
-        "kd": np.array([m.phong_kd_rgb for m in materials]),
-        "ks": np.array([m.ks_rgb for m in materials]),
-        "g": np.array([m.phong_gloss_exponent for m in materials]),
+        "kd": np.array([p.kd_rgb for p in coefficients]),
+        "ks": np.array([p.ks_rgb for p in coefficients]),
+        "g": np.array([p.gloss_exponent_g for p in coefficients]),
+        "a": np.array([p.fresnel_exponent_a for p in coefficients]),
+        "b": np.array([p.lobe_decay_b for p in coefficients]),
+        "c": np.array([p.diffuse_exponent_c for p in coefficients]),
     }
 
 
@@ -44,9 +49,14 @@ def regularized(material: Material, min_roughness: float) -> Material:
     if material.roughness >= min_roughness:
         return material
     rougher = dataclasses.replace(material, roughness=min_roughness, gloss_exponent_g=None)
+    cap = rougher.phong_gloss_exponent
     if material.gloss_exponent_g is not None:
-        cap = rougher.phong_gloss_exponent
         rougher = dataclasses.replace(rougher, gloss_exponent_g=min(material.gloss_exponent_g, cap))
+    if material.phong is not None:
+        capped = min(material.phong.gloss_exponent_g, cap)
+        rougher = dataclasses.replace(
+            rougher, phong=dataclasses.replace(material.phong, gloss_exponent_g=capped)
+        )
     return rougher
 
 
@@ -81,12 +91,24 @@ class SurfaceModel:
         )
         self._factors = None
         if self._textured and self.model != "ggx":
-            # The material values the Phong coefficients are computed from.
+            # The material values the Phong coefficients are computed from, and for parts
+            # with explicit coefficients their offsets from the mapped ones (a textured
+            # texel gets the mapped coefficients of its values plus these offsets).
             base = np.array([m.base_color_rgb for m in materials], dtype=np.float32)
+            explicit = [m.phong is not None for m in materials]
+            offset_kd = np.array(
+                [np.subtract(m.phong_coefficients.kd_rgb, m.phong_kd_rgb) for m in materials]
+            )
+            offset_ks = np.array(
+                [np.subtract(m.phong_coefficients.ks_rgb, m.ks_rgb) for m in materials]
+            )
             self._factors = {
                 "base": mi.Color3f(base.T),
                 "metallic": mi.Float(np.array([m.metallic for m in materials], np.float32)),
                 "f0": mi.Float(np.array([m.f0 for m in materials], np.float32)),
+                "explicit": mi.Bool(np.array(explicit, dtype=bool)),
+                "offset_kd": mi.Color3f(offset_kd.astype(np.float32).T),
+                "offset_ks": mi.Color3f(offset_ks.astype(np.float32).T),
             }
         if self.model == "ggx":
             self._params = ggx.GGXParams.from_values(
@@ -102,12 +124,7 @@ class SurfaceModel:
         else:
             t = _phong_tables(materials)
             self._params = phong.ImprovedPhongParams.from_values(
-                t["kd"],
-                t["ks"],
-                t["g"],
-                np.array([m.fresnel_exponent_a for m in materials]),
-                np.array([m.lobe_decay_b for m in materials]),
-                np.array([m.diffuse_exponent_c for m in materials]),
+                t["kd"], t["ks"], t["g"], t["a"], t["b"], t["c"]
             )
         self._functions = {
             "ggx": (ggx.ggx_eval_parts, ggx.ggx_sample, None),
@@ -195,6 +212,14 @@ class SurfaceModel:
         f0 = dr.gather(mi.Float, self._factors["f0"], part, active)
         kd = (1.0 - metallic) * base * (1.0 - f0)
         ks = metallic * base + (1.0 - metallic) * f0
+        # Parts with explicit coefficients: the texel's mapped coefficients moved by the
+        # part's offset (explicit - mapped), clamped to reflectances with kd + ks <= 1.
+        explicit = dr.gather(mi.Bool, self._factors["explicit"], part, active)
+        kd_x = dr.maximum(kd + dr.gather(mi.Color3f, self._factors["offset_kd"], part, active), 0)
+        ks_x = dr.maximum(ks + dr.gather(mi.Color3f, self._factors["offset_ks"], part, active), 0)
+        excess = dr.maximum(kd_x + ks_x, 1.0)
+        kd = dr.select(explicit, kd_x / excess, kd)
+        ks = dr.select(explicit, ks_x / excess, ks)
         values["kd"] = dr.select(textured, kd, values["kd"])
         values["ks"] = dr.select(textured, ks, values["ks"])
 
@@ -268,7 +293,7 @@ class SurfaceModel:
             if self.model == "ggx":
                 keys.append(("fresnel", m.ior if m.metallic < 1.0 else 1.0))
             elif self.model == "improved_phong":
-                keys.append(("power", 1.0 + m.diffuse_exponent_c))
+                keys.append(("power", 1.0 + m.phong_coefficients.diffuse_exponent_c))
             else:
                 keys.append(("power", 1.0))
         rows = {}
