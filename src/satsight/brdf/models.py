@@ -211,6 +211,26 @@ def ggx_brdf(wi, wo, base, metallic, roughness, ior, masking: str = "schlick") -
 _NODES_PER_SEGMENT = 16
 
 
+def graded_beta_nodes(
+    lobe_width_rad: float, nodes_per_segment: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes beta in [0, pi] (rad) from a lobe's axis and their weights sin(beta) d beta:
+    Gauss-Legendre with ``nodes_per_segment`` points on segments graded geometrically from
+    lobe_width_rad / 8 (clipped to [1e-6, 1] rad) out to pi, so a narrow lobe and the wide
+    rest are both resolved."""
+    x, w = np.polynomial.legendre.leggauss(nodes_per_segment)
+    width = float(np.clip(lobe_width_rad, 1e-6, 1.0))
+    edges = [0.0]
+    edge = width / 8.0
+    while edge < math.pi:
+        edges.append(edge)
+        edge *= 2.0
+    edges.append(math.pi)
+    lo, hi = np.array(edges[:-1])[:, None], np.array(edges[1:])[:, None]
+    beta = (0.5 * (hi - lo) * x + 0.5 * (hi + lo)).ravel()
+    return beta, (0.5 * (hi - lo) * w).ravel() * np.sin(beta)
+
+
 def directional_albedo(
     brdf: Callable[[np.ndarray, np.ndarray], np.ndarray],
     theta_i_rad: float,
@@ -227,17 +247,7 @@ def directional_albedo(
     midpoint rule with n_phi nodes. The horizon cut makes the integrand's derivative jump,
     which limits the accuracy to about 1e-4 for n_phi = 256.
     """
-    x, w = np.polynomial.legendre.leggauss(_NODES_PER_SEGMENT)
-    width = float(np.clip(lobe_width_rad, 1e-6, 1.0))
-    edges = [0.0]
-    edge = width / 8.0
-    while edge < math.pi:
-        edges.append(edge)
-        edge *= 2.0
-    edges.append(math.pi)
-    lo, hi = np.array(edges[:-1])[:, None], np.array(edges[1:])[:, None]
-    beta = (0.5 * (hi - lo) * x + 0.5 * (hi + lo)).ravel()
-    w_beta = (0.5 * (hi - lo) * w).ravel() * np.sin(beta)
+    beta, w_beta = graded_beta_nodes(lobe_width_rad, _NODES_PER_SEGMENT)
     psi = (np.arange(n_phi) + 0.5) * (2.0 * math.pi / n_phi)
     w_psi = 2.0 * math.pi / n_phi
 

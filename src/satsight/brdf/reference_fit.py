@@ -63,6 +63,7 @@ from satsight.brdf.models import (
     MASKINGS,
     ggx_brdf,
     ggx_lobe_width_rad,
+    graded_beta_nodes,
     mirror_about_normal,
     unit_vectors_from_angles,
 )
@@ -98,17 +99,7 @@ def reference_grid(lobe_width_rad: float) -> ReferenceGrid:
     mu_lo = math.cos(math.radians(MAX_THETA_I_DEG))
     mu = 0.5 * (1.0 - mu_lo) * x + 0.5 * (1.0 + mu_lo)
     w_mu = 0.5 * (1.0 - mu_lo) * w
-    xb, wb = np.polynomial.legendre.leggauss(NODES_PER_SEGMENT)
-    width = float(np.clip(lobe_width_rad, 1e-6, 1.0))
-    edges = [0.0]
-    edge = width / 8.0
-    while edge < math.pi:
-        edges.append(edge)
-        edge *= 2.0
-    edges.append(math.pi)
-    lo, hi = np.array(edges[:-1])[:, None], np.array(edges[1:])[:, None]
-    beta = (0.5 * (hi - lo) * xb + 0.5 * (hi + lo)).ravel()
-    w_beta = (0.5 * (hi - lo) * wb).ravel() * np.sin(beta)
+    beta, w_beta = graded_beta_nodes(lobe_width_rad, NODES_PER_SEGMENT)
     psi = (np.arange(N_AZIMUTH) + 0.5) * (math.pi / N_AZIMUTH)
     w_psi = 2.0 * math.pi / N_AZIMUTH  # [0, pi] stands for the symmetric full circle
     local = unit_vectors_from_angles(beta[:, None], psi[None, :])  # (n_beta, n_psi, 3)
