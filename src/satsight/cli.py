@@ -1,5 +1,6 @@
 """Command line: ``satsight demo | generate | merge | validate | stats | export | plan |
-camera | ablate | bench | satellite | materials | fit-brdf``.
+camera | ablate | bench | satellite | materials | fit-brdf |
+lightcurve``.
 
 A thin shell over ``satsight.generation``, ``satsight.dataset`` and the other stages, its
 commands in ``satsight.commands``: user errors print a message and exit with status 2,
@@ -35,6 +36,7 @@ for _command in (
     describe.plan,
     describe.camera,
     describe.satellite,
+    describe.lightcurve,
     measure.ablate,
     measure.bench,
     materials.materials,

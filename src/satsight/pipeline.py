@@ -411,14 +411,7 @@ class FrameEngine:
         """
         scenario, plan_index = self.scenario, frame.plan_index
         labels = frame_labels(self.mesh, self.camera, frame.cam_from_body, frame.sun, frame.image)
-        # The Sun's in-band irradiance at the frame before the Earth's shadow, as frame_light
-        # lights it: the photometric labels' reference.
-        sun_distance_m = float(self.track.sun_distance_m[plan_index])
-        if scenario.sampler is None:
-            sun_irradiance = scenario.sun.in_band_irradiance_w_m2
-        else:
-            at_1_au = scenario.sun.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
-            sun_irradiance = at_1_au * (AU_M / sun_distance_m) ** 2
+        sun_irradiance, sun_distance_m = self.sun_irradiance_at_camera(plan_index)
         photometry = frame_photometry(
             frame.image,
             self.camera,
@@ -450,6 +443,17 @@ class FrameEngine:
             box = crop_window_xyxy_px(labels["keypoints_px"][-1], crop.size_px, frame.image.shape)
             record["crop"] = crop_labels(labels, frame.image.object_mask, box)
         return record, FrameArrays(frame.image, dn_image), box
+
+    def sun_irradiance_at_camera(self, plan_index: int) -> tuple[float, float]:
+        """The Sun's in-band irradiance (W m^-2) at plan frame ``plan_index`` before the
+        Earth's shadow, as ``frame_light`` lights it (the photometric labels' reference),
+        and the Sun's distance (m)."""
+        scenario = self.scenario
+        sun_distance_m = float(self.track.sun_distance_m[plan_index])
+        if scenario.sampler is None:
+            return scenario.sun.in_band_irradiance_w_m2, sun_distance_m
+        at_1_au = scenario.sun.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
+        return at_1_au * (AU_M / sun_distance_m) ** 2, sun_distance_m
 
     def header(self) -> dict:
         """The dataset's description: everything labels.json holds besides its frames."""

@@ -1,5 +1,5 @@
 """Commands that describe a scenario's parts without rendering a dataset: plan, camera,
-satellite."""
+satellite, lightcurve."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import click
+import numpy as np
 from rich.console import Console
 
 from satsight.commands.shell import console, example_scenario_path
@@ -150,3 +151,52 @@ def satellite(satellite_class: str, seed: int, out_path: Path) -> None:
     console.print(
         f"wrote {obj} and {mtl}: {len(mesh.part_names)} parts, {len(mesh.faces)} triangles"
     )
+
+
+@click.command()
+@click.argument("config", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(path_type=Path),
+    default=Path("out/lightcurve"),
+    show_default=True,
+    help="folder for lightcurve.csv and lightcurve.png (created; files of the same name "
+    "are replaced)",
+)
+@click.option(
+    "--size-px",
+    default=96,
+    show_default=True,
+    type=click.IntRange(min=16, max=1024),
+    help="side of the small render of each frame (the target fills 80 %% of it)",
+)
+@click.option(
+    "--spp",
+    default=None,
+    type=click.IntRange(min=1),
+    help="samples per pixel (default: the scenario's)",
+)
+def lightcurve(config: Path, out_dir: Path, size_px: int, spp: int | None) -> None:
+    """Render CONFIG's frames small and plot the target's in-band irradiance at the observer
+    and its V-equivalent magnitude over time; write CSV."""
+    from satsight.commands.shell import progress_bar
+    from satsight.config.scenario import load_scenario
+    from satsight.lightcurve import plot_lightcurve, run_lightcurve, write_csv
+
+    scenario = load_scenario(config)
+    with progress_bar() as progress:
+        task = progress.add_task("light curve", total=None)
+        curve = run_lightcurve(
+            scenario,
+            size_px=size_px,
+            samples_per_pixel=spp,
+            on_frame=lambda done, total: progress.update(task, completed=done, total=total),
+        )
+    out_dir.mkdir(parents=True, exist_ok=True)
+    csv_path = write_csv(curve, out_dir / "lightcurve.csv")
+    png_path = plot_lightcurve(curve, out_dir / "lightcurve.png")
+    magnitudes = curve.column("v_magnitude_equivalent")
+    lit = magnitudes[np.isfinite(magnitudes)]
+    span = f"V {lit.min():.2f} to {lit.max():.2f}" if lit.size else "no lit frame"
+    console.print(f"{len(curve.rows)} frames, {span}; wrote {csv_path} and {png_path}")
