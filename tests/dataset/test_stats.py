@@ -84,10 +84,17 @@ def test_histograms_hold_every_frame_in_their_bins(stats: dict, frames: list[dic
             for f in frames
             if f["target_v_magnitude_equivalent"] is not None
         ],
+        "earth_fill_fraction_p99": [
+            f["sensor"]["regions"]["earth"]["fill_fraction_p99"]
+            for f in frames
+            if f["sensor"]["regions"]["earth"]["fill_fraction_p99"] is not None
+        ],
     }
     for name, hist in stats["histograms"].items():
         assert hist["missing"] == FRAME_COUNT - len(values[name]), name
         assert sum(hist["counts"]) == len(values[name]), name
+        if not values[name]:  # no frame has it (e.g. no Earth behind the target)
+            continue
         assert len(hist["edges"]) == len(hist["counts"]) + 1
         assert hist["min"] == min(values[name]) and hist["max"] == max(values[name])
         assert hist["median"] == pytest.approx(np.median(values[name]), rel=1e-12)

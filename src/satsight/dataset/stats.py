@@ -1,8 +1,9 @@
 """``satsight stats``: what a dataset holds, counted and binned from its labels.
 
 Counts per distance interval, per target class and per visibility flag; histograms of the
-range (log bins), phase angle, visible pixel fraction, exposure time, saturated pixel count
-and the target's V-equivalent magnitude. Everything comes from the frame records (no image
+range (log bins), phase angle, visible pixel fraction, exposure time, saturated pixel count,
+the target's V-equivalent magnitude and the Earth's level behind the target (fraction of
+full well). Everything comes from the frame records (no image
 is read); ``stats.json`` holds the numbers and ``stats.png`` draws them. Frames without a
 value (a target that sends no light has no magnitude; datasets written before a label
 existed lack it) are counted as ``missing``.
@@ -37,6 +38,13 @@ DISTRIBUTIONS = {
     "exposure_time_s": ("s", "linear", "exposure time (s)"),
     "saturated_pixel_count": ("pixels", "linear", "saturated pixels (count)"),
     "target_v_magnitude_equivalent": ("mag", "linear", "target V-equivalent magnitude"),
+    "earth_fill_fraction_p99": ("1", "linear", "Earth behind the target: p99 level / full well"),
+}
+#: Where a distribution's value sits in a frame record, when not at its top level.
+_PATHS = {
+    "exposure_time_s": ("sensor", "exposure_time_s"),
+    "saturated_pixel_count": ("sensor", "saturated_pixel_count"),
+    "earth_fill_fraction_p99": ("sensor", "regions", "earth", "fill_fraction_p99"),
 }
 MAX_BINS = 30
 PHASE_BIN_DEG = 10.0
@@ -65,10 +73,9 @@ def distance_interval(frame: dict) -> str:
 
 def _value(frame: dict, name: str) -> float | None:
     """A frame's value of distribution ``name`` (None when absent or not finite)."""
-    source = (
-        frame.get("sensor") or {} if name in ("exposure_time_s", "saturated_pixel_count") else frame
-    )
-    value = source.get(name)
+    value = frame
+    for key in _PATHS.get(name, (name,)):
+        value = value.get(key) if isinstance(value, dict) else None
     try:
         value = float(value)
     except (TypeError, ValueError):

@@ -11,7 +11,8 @@ def plot_stats(stats: dict, path: Path) -> Path:
     """Draw ``stats`` (from ``dataset_stats``) as a grid of panels in two rows, saved as PNG.
 
     Panels: one per histogram (range on a log axis, m; phase angle, deg; visible pixel
-    fraction; exposure time, s; saturated pixel count; target V-equivalent magnitude), then
+    fraction; exposure time, s; saturated pixel count; target V-equivalent magnitude; the
+    Earth's level behind the target), then
     frames per distance interval. Returns ``path``.
     """
     import matplotlib
