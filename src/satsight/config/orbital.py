@@ -8,16 +8,26 @@ Non-SI units appear only here, in the key's name (``semi_major_axis_km``, ``radi
 from __future__ import annotations
 
 import math
+from functools import lru_cache
+from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from satsight.ephemeris.oem import OemEphemeris, read_oem
 from satsight.ephemeris.orbits import (
     EARTH_EQUATORIAL_RADIUS_M,
     MU_EARTH_M3_S2,
     OrbitalElements,
     orbital_period_s,
+)
+from satsight.ephemeris.tle import (
+    Sgp4Orbit,
+    parse_tle,
+    read_omm_file,
+    read_tle_file,
+    select_orbit,
 )
 from satsight.ephemeris.visibility import DEFAULT_ATMOSPHERE_MARGIN_M, VisibilityLimits
 from satsight.poses.attitude import ROLL_POLICIES
@@ -219,13 +229,144 @@ class RelativeRtnConfig(_ObserverBase):
         return self
 
 
+# --- trajectories from catalogued elements (TLE, OMM) and ephemeris files (OEM) ----------
+
+
+def _file_key(path: Path) -> tuple[str, int, int]:
+    """A cache key that changes when the file does: (resolved path, mtime_ns, size)."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return (str(path), -1, -1)
+    return (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+
+
+@lru_cache(maxsize=32)
+def _load_elements(
+    kind: str, lines: tuple[str, ...] | None, file_key: tuple[str, int, int] | None, satellite
+) -> Sgp4Orbit:
+    if lines is not None:
+        return select_orbit(parse_tle(list(lines), source="tle.lines"), satellite, "tle.lines")
+    path = Path(file_key[0])
+    orbits = read_tle_file(path) if kind == "tle" else read_omm_file(path)
+    return select_orbit(orbits, satellite, str(path))
+
+
+@lru_cache(maxsize=32)
+def _load_oem(file_key: tuple[str, int, int]) -> OemEphemeris:
+    return read_oem(Path(file_key[0]))
+
+
+class TleConfig(_Strict):
+    """The target (or the observer) flies a two-line element set, propagated with SGP4.
+
+    ``lines``: the 2 lines of the set, or 3 with its name first; ``file``: a text file of one
+    or more sets (CelesTrak layout); ``satellite``: which set of a file (its name or its
+    catalogue number; needed when the file holds several). Without ``epoch_utc`` the
+    scenario starts at the element epoch.
+    """
+
+    lines: tuple[str, ...] | None = Field(default=None, min_length=2, max_length=3)
+    file: Path | None = None
+    satellite: str | int | None = None
+
+    @model_validator(mode="after")
+    def _one_source(self) -> TleConfig:
+        if (self.lines is None) == (self.file is None):
+            raise ValueError("give exactly one of 'lines' (the TLE's 2 or 3 lines) or 'file'")
+        return self
+
+    def load(self) -> Sgp4Orbit:
+        """The element set, parsed and checked (cached while the file is unchanged)."""
+        key = None if self.file is None else _file_key(self.file)
+        return _load_elements("tle", self.lines, key, self.satellite)
+
+    @property
+    def semi_major_axis_km(self) -> float:
+        """The SGP4 mean semi-major axis, km (sets the default span and step_deg frames)."""
+        return self.load().mean_semi_major_axis_m / 1e3
+
+    def default_epoch_utc(self) -> str:
+        return self.load().epoch_utc
+
+
+class OmmConfig(_Strict):
+    """The target (or the observer) flies CCSDS OMM mean elements (KVN, XML, or CelesTrak's
+    JSON or CSV), propagated with SGP4. ``satellite`` chooses a record as for ``tle``.
+    Without ``epoch_utc`` the scenario starts at the element epoch."""
+
+    file: Path
+    satellite: str | int | None = None
+
+    def load(self) -> Sgp4Orbit:
+        return _load_elements("omm", None, _file_key(self.file), self.satellite)
+
+    @property
+    def semi_major_axis_km(self) -> float:
+        return self.load().mean_semi_major_axis_m / 1e3
+
+    def default_epoch_utc(self) -> str:
+        return self.load().epoch_utc
+
+
+class OemConfig(_Strict):
+    """The target (or the observer) follows a CCSDS OEM ephemeris file (KVN), interpolated
+    as its header says. Without ``epoch_utc`` the scenario starts at the first useable time
+    of the file; every frame must fall inside its useable span."""
+
+    file: Path
+
+    def load(self) -> OemEphemeris:
+        return _load_oem(_file_key(self.file))
+
+    @property
+    def semi_major_axis_km(self) -> float:
+        """The osculating semi-major axis of the file's first state, km (vis-viva)."""
+        r, v = self.load().first_state_gcrs()
+        energy = 0.5 * float(v @ v) - MU_EARTH_M3_S2 / float(np.linalg.norm(r))
+        if energy >= 0.0:
+            raise ValueError(f"{self.file}: the first state is not on a closed orbit")
+        return -MU_EARTH_M3_S2 / (2.0 * energy) / 1e3
+
+    def default_epoch_utc(self) -> str:
+        return self.load().useable_start_utc
+
+
+TrajectoryConfig = OrbitConfig | TleConfig | OmmConfig | OemConfig
+TRAJECTORY_KEYS = ("orbit", "tle", "omm", "oem")
+
+
+class TleObserverConfig(TleConfig, _ObserverBase):
+    """The observer flies its own TLE (SGP4), independently of the target."""
+
+    mode: Literal["tle"]
+
+
+class OmmObserverConfig(OmmConfig, _ObserverBase):
+    """The observer flies its own OMM mean elements (SGP4), independently of the target."""
+
+    mode: Literal["omm"]
+
+
+class OemObserverConfig(OemConfig, _ObserverBase):
+    """The observer follows its own OEM ephemeris file, independently of the target."""
+
+    mode: Literal["oem"]
+
+
+ABSOLUTE_TRAJECTORY_MODES = ("tle", "omm", "oem")
+
+
 ObserverConfig = Annotated[
     FlyAroundConfig
     | FlyByConfig
     | ApproachConfig
     | HoverConfig
     | ObserverElementsConfig
-    | RelativeRtnConfig,
+    | RelativeRtnConfig
+    | TleObserverConfig
+    | OmmObserverConfig
+    | OemObserverConfig,
     Field(discriminator="mode"),
 ]
 NATURAL_SPAN_MODES = ("fly_around", "fly_by", "approach", "hover")
@@ -330,7 +471,7 @@ class PropagationConfig(_Strict):
     j2: bool = True
 
 
-def natural_span_s(orbit: OrbitConfig, observer: BaseModel) -> float:
+def natural_span_s(orbit: TrajectoryConfig, observer: BaseModel) -> float:
     """The default length of an SSPT span for an observer mode, s: one target orbit, a
     fly-by's whole pass (4 y0 / (3 n x0)), or an approach's ``revolutions`` orbits."""
     a_m = orbit.semi_major_axis_km * 1e3
@@ -344,7 +485,7 @@ def natural_span_s(orbit: OrbitConfig, observer: BaseModel) -> float:
     return period
 
 
-def check_sspt_size(orbit: OrbitConfig, observer: BaseModel, sampler: SsptConfig) -> None:
+def check_sspt_size(orbit: TrajectoryConfig, observer: BaseModel, sampler: SsptConfig) -> None:
     """Refuse SSPT plans longer than MAX_SPAN_S or with more than MAX_FRAMES frames."""
     span = sampler.duration_s or natural_span_s(orbit, observer)
     if sampler.start_s + span > MAX_SPAN_S:

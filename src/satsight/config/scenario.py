@@ -23,11 +23,17 @@ from pydantic import (
 
 from satsight.camera.pinhole import CAMERA_PRESETS, PinholeCamera
 from satsight.config.orbital import (
+    ABSOLUTE_TRAJECTORY_MODES,
+    TRAJECTORY_KEYS,
     AttitudeConfig,
     ObserverConfig,
+    OemConfig,
+    OmmConfig,
     OrbitConfig,
     PropagationConfig,
     SamplerConfig,
+    TleConfig,
+    TrajectoryConfig,
     VisibilityConfig,
     check_sspt_size,
 )
@@ -308,6 +314,9 @@ _HAND_PLACED = {
 _ORBITAL_KEYS = (
     "epoch_utc",
     "orbit",
+    "tle",
+    "omm",
+    "oem",
     "attitude",
     "observer",
     "visibility",
@@ -331,6 +340,11 @@ class Scenario(_Strict):
     Sun, the Earth and the Moon placed by hand) or from ``sampler`` (frames planned from
     orbits: ``epoch_utc``, the target's ``orbit`` and ``attitude``, the ``observer``'s mode
     for SSPT, ``visibility`` limits; the Sun and the Moon come from the ephemeris).
+
+    The target's trajectory is exactly one of ``orbit`` (osculating elements, propagated),
+    ``tle`` or ``omm`` (SGP4 mean elements) or ``oem`` (an ephemeris file). With ``tle`` or
+    ``omm``, ``epoch_utc`` may be left out: it is then the element epoch; with ``oem``, the
+    file's first useable time.
     """
 
     name: str = "scenario"
@@ -343,6 +357,9 @@ class Scenario(_Strict):
     frames: list[FrameConfig] = Field(default_factory=list)
     epoch_utc: str | None = None
     orbit: OrbitConfig | None = None
+    tle: TleConfig | None = None
+    omm: OmmConfig | None = None
+    oem: OemConfig | None = None
     attitude: AttitudeConfig = AttitudeConfig()
     observer: ObserverConfig | None = None
     sampler: SamplerConfig | None = None
@@ -363,6 +380,33 @@ class Scenario(_Strict):
                     f"({camera.width_px} x {camera.height_px} px); choose a smaller crop"
                 )
         return self
+
+    @model_validator(mode="before")
+    @classmethod
+    def _epoch_from_trajectory(cls, data: object) -> object:
+        """Without epoch_utc, a TLE/OMM target starts at its element epoch and an OEM target
+        at its first useable time."""
+        if not isinstance(data, dict) or data.get("epoch_utc") is not None:
+            return data
+        given = [k for k in ("tle", "omm", "oem") if data.get(k) is not None]
+        if len(given) != 1 or data.get("orbit") is not None:
+            return data  # the errors are reported by the validators below
+        config_class = {"tle": TleConfig, "omm": OmmConfig, "oem": OemConfig}[given[0]]
+        try:
+            config = config_class.model_validate(data[given[0]])
+            epoch = config.default_epoch_utc()
+        except (ValidationError, SatsightError):
+            return data  # reported, with the key's location, by the field validation
+        return {**data, "epoch_utc": epoch}
+
+    @property
+    def trajectory(self) -> TrajectoryConfig | None:
+        """The target's trajectory: whichever of orbit, tle, omm or oem is given."""
+        for key in TRAJECTORY_KEYS:
+            value = getattr(self, key)
+            if value is not None:
+                return value
+        return None
 
     @field_validator("epoch_utc")
     @classmethod
@@ -394,7 +438,16 @@ class Scenario(_Strict):
                     "'sampler' or remove them"
                 )
             return self
-        missing = [key for key in ("epoch_utc", "orbit") if getattr(self, key) is None]
+        given = [key for key in TRAJECTORY_KEYS if getattr(self, key) is not None]
+        if len(given) > 1:
+            raise ValueError(
+                f"give the target's trajectory once: {', '.join(given)} are all given; keep one "
+                "of orbit (elements), tle, omm or oem"
+            )
+        _load_trajectories(self)  # a bad file is reported before what it would have given
+        missing = [key for key in ("epoch_utc",) if getattr(self, key) is None]
+        if not given:
+            missing.append("orbit (or tle, omm, oem)")
         if missing:
             raise ValueError(
                 f"a sampler plans frames from orbits and needs {' and '.join(missing)}"
@@ -410,7 +463,7 @@ class Scenario(_Strict):
             if self.observer.mode != "fly_around":
                 raise ValueError("sampler step_deg applies only to observer mode fly_around")
         if self.sampler.kind == "sspt":
-            check_sspt_size(self.orbit, self.observer, self.sampler)
+            check_sspt_size(self.trajectory, self.observer, self.sampler)
         for section, keys in _HAND_PLACED.items():
             config = getattr(self, section)
             placed = [] if config is None else [k for k in keys if _differs_from_default(config, k)]
@@ -420,6 +473,39 @@ class Scenario(_Strict):
                     f"{section}'s place comes from the ephemeris and the orbit; remove them"
                 )
         return self
+
+
+def _load_trajectories(scenario: Scenario) -> None:
+    """Read the target's and the observer's element sets or ephemeris files now, so that a
+    bad file is reported when the scenario is read."""
+    sources = [] if scenario.trajectory is None else [scenario.trajectory]
+    if scenario.observer is not None and scenario.observer.mode in ABSOLUTE_TRAJECTORY_MODES:
+        sources.append(scenario.observer)
+    for source in sources:
+        if isinstance(source, OrbitConfig):
+            continue
+        try:
+            source.load()
+        except SatsightError as error:
+            raise ValueError(str(error)) from None
+
+
+def _resolve_trajectory_files(data: object, folder: Path) -> object:
+    """The scenario mapping with relative ``file`` paths of tle, omm, oem and of an observer
+    in mode tle, omm or oem made relative to the scenario's folder."""
+    if not isinstance(data, dict):
+        return data
+    out = dict(data)
+    for key in ("tle", "omm", "oem", "observer"):
+        section = out.get(key)
+        if not isinstance(section, dict) or not isinstance(section.get("file"), str):
+            continue
+        if key == "observer" and section.get("mode") not in ABSOLUTE_TRAJECTORY_MODES:
+            continue
+        file = Path(section["file"]).expanduser()
+        if not file.is_absolute():
+            out[key] = {**section, "file": str((folder / file).resolve())}
+    return out
 
 
 _MAX_LISTED_ERRORS = 50  # a file of 100 000 wrong values gets a page of them, not a flood
@@ -464,13 +550,15 @@ def parse_scenario(data: object, source: str = "scenario") -> Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario YAML file. Mesh paths are resolved against its folder.
+    """Read and validate a scenario YAML file. Mesh paths, and the files of ``tle``, ``omm``
+    and ``oem`` (target or observer), are resolved against its folder.
 
     The file is read within the limits of ``satsight.config.yaml_safety`` (size, nesting,
     aliases; no repeated keys).
     """
     path = Path(path)
-    scenario = parse_scenario(load_yaml_file(path), str(path))
+    data = _resolve_trajectory_files(load_yaml_file(path), path.parent)
+    scenario = parse_scenario(data, str(path))
     mesh = scenario.target.mesh
     if mesh is not None and not mesh.path.is_absolute():
         resolved = (path.parent / mesh.path).resolve()

@@ -6,8 +6,12 @@ Two sources of frames:
   azimuth, elevation and roll about the target; the Sun, the Earth and the Moon are placed by
   hand in the body frame. No orbit and no visibility tests.
 - **Frames planned from orbits** (``sampler:``): the target flies on ``orbit`` from
-  ``epoch_utc`` and turns by its ``attitude`` law; the Sun and the Moon come from the DE421
-  ephemeris; the Earth is at the origin of GCRS.
+  ``epoch_utc`` (or follows a TLE / OMM with SGP4, or an OEM ephemeris file) and turns by its
+  ``attitude`` law; the Sun and the Moon come from the DE421 ephemeris; the Earth is at the
+  origin of GCRS. With a TLE/OMM/OEM target the relative modes start from its state at the
+  epoch: their relative motion is flown with our dynamics and carried, in the target's RTN
+  frame, onto the target's real trajectory. An observer may also follow its own TLE, OMM or
+  OEM (modes ``tle``, ``omm``, ``oem``).
 
   - ``sspt``: the observer follows its operational mode (fly-around, fly-by, approach, hover,
     its own elements or an RTN initial state) and frames are taken at uniform times.
@@ -30,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from satsight.config.orbital import ABSOLUTE_TRAJECTORY_MODES
 from satsight.config.orbital import natural_span_s as config_natural_span_s
 from satsight.config.scenario import Scenario
 from satsight.ephemeris.orbits import (
@@ -37,6 +42,7 @@ from satsight.ephemeris.orbits import (
     J2,
     MU_EARTH_M3_S2,
     OrbitalElements,
+    elements_from_state,
     orbital_period_s,
     propagate,
     state_from_elements,
@@ -45,7 +51,7 @@ from satsight.ephemeris.sun_moon import AU_M, moon_position_gcrs_m, sun_position
 from satsight.ephemeris.time import epoch_times, format_epoch_utc
 from satsight.ephemeris.visibility import assess_visibility
 from satsight.errors import SatsightError
-from satsight.frames.orbital import inertial_from_relative_rtn, rtn_from_inertial
+from satsight.frames.orbital import inertial_from_relative_rtn, relative_rtn, rtn_from_inertial
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_conjugate
 from satsight.poses import relative_motion as rm
 from satsight.poses.attitude import (
@@ -171,7 +177,7 @@ def _mean_motion_rad_s(elements: OrbitalElements) -> float:
 
 def natural_span_s(scenario: Scenario) -> float:
     """The default length of an SSPT span for the scenario's observer mode, s."""
-    return config_natural_span_s(scenario.orbit, scenario.observer)
+    return config_natural_span_s(scenario.trajectory, scenario.observer)
 
 
 def _sspt_times(scenario: Scenario) -> np.ndarray:
@@ -179,7 +185,7 @@ def _sspt_times(scenario: Scenario) -> np.ndarray:
     duration = sampler.duration_s or natural_span_s(scenario)
     start, end = sampler.start_s, sampler.start_s + duration
     if sampler.step_deg is not None:
-        period = orbital_period_s(scenario.orbit.semi_major_axis_km * 1e3)
+        period = orbital_period_s(scenario.trajectory.semi_major_axis_km * 1e3)
         # The fly-around turns 360 degrees per target orbit from the start of the span.
         stop_deg = 360.0 * duration / period
         return sspt_angle_times_s(period, 0.0, stop_deg, sampler.step_deg, start_s=start)
@@ -293,6 +299,22 @@ def _rssf_intervals(scenario: Scenario) -> tuple[DistanceInterval, ...]:
     return tuple(intervals)
 
 
+def _trajectory_states(source, scenario: Scenario, times_s: np.ndarray):
+    """GCRS positions (N, 3), m, and velocities (N, 3), m/s, of a TLE/OMM (SGP4) or OEM
+    (interpolated) trajectory at ``times_s`` (N,) s after the scenario epoch."""
+    return source.load().state_gcrs(epoch_times(scenario.epoch_utc, times_s))
+
+
+def _target_start(scenario: Scenario) -> tuple[np.ndarray, np.ndarray, OrbitalElements]:
+    """The target's GCRS state at the epoch and its osculating elements there."""
+    if scenario.orbit is not None:
+        elements = scenario.orbit.build()
+        r0, v0 = state_from_elements(elements)
+        return r0, v0, elements
+    r, v = _trajectory_states(scenario.trajectory, scenario, np.zeros(1))
+    return r[0], v[0], elements_from_state(r[0], v[0])
+
+
 @dataclass(frozen=True)
 class _Flight:
     """Where the target and the camera are at each frame time (GCRS, m, m/s)."""
@@ -313,7 +335,7 @@ class _Flight:
 
 def _rssf_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
     sampler = scenario.sampler
-    r0, v0 = state_from_elements(scenario.orbit.build())
+    r0, v0, _ = _target_start(scenario)
     count = sampler.frame_count
     times = np.zeros(count)
     r_t, v_t = np.tile(r0, (count, 1)), np.tile(v0, (count, 1))
@@ -337,8 +359,10 @@ def _rssf_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
 
 
 def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
-    elements = scenario.orbit.build()
-    r0, v0 = state_from_elements(elements)
+    # From elements (orbit) the target is propagated; from a TLE/OMM (SGP4) or an OEM it
+    # follows that trajectory, and the relative modes start from its state at the epoch.
+    r0, v0, elements = _target_start(scenario)
+    from_elements = scenario.orbit is not None
     prop = scenario.propagation
     sampler, observer = scenario.sampler, scenario.observer
 
@@ -348,7 +372,10 @@ def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
         )
 
     times = _sspt_times(scenario)
-    r_t, v_t = fly(r0, v0, times)
+    if from_elements:
+        r_t, v_t = fly(r0, v0, times)
+    else:
+        r_t, v_t = _trajectory_states(scenario.trajectory, scenario, times)
     q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
     center = r_t + matrix_from_quaternion(q_gcrs_from_body) @ center_body
     if observer.mode == "approach":
@@ -364,8 +391,17 @@ def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
         )
         # About the box centre, so the ranges are exactly the spiral's.
         r_obs, v_obs = inertial_from_relative_rtn(center, v_t, rho[:-1], rho_dot[:-1])
+    elif observer.mode in ABSOLUTE_TRAJECTORY_MODES:
+        r_obs, v_obs = _trajectory_states(observer, scenario, times)
     else:
         r_obs, v_obs = fly(*_observer_initial_state(scenario, r0, v0, elements), times)
+        if not from_elements and observer.mode != "elements":
+            # The natural relative motion comes from both spacecraft flown with the same
+            # dynamics from the target's state at the epoch; it is carried, in RTN, onto the
+            # target's real (SGP4 / OEM) trajectory, whose own dynamics differ from ours and
+            # would otherwise pull the pair apart by kilometres per orbit.
+            rho, rho_dot = relative_rtn(*fly(r0, v0, times), r_obs, v_obs)
+            r_obs, v_obs = inertial_from_relative_rtn(r_t, v_t, rho, rho_dot)
     roll_rad = np.full(len(times), math.radians(observer.roll_deg))
     return _Flight(
         times, r_t, v_t, q_gcrs_from_body, center, r_obs, v_obs, r_obs, v_obs,
