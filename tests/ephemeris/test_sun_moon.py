@@ -76,19 +76,12 @@ def _astropy_tdb(Time, ts):
 
 
 def _oracle_geometric_m(astropy_offline, body, ts):
-    """Geocentric geometric position, light-time corrected: body(t - lt) - earth(t), m.
-
-    This is the definition skyfield's ``observe`` uses (no aberration, no deflection), so
-    both sides are the same kind of vector.
-    """
+    """Geocentric geometric position: body(t) - earth(t), m, no light time, aberration or
+    deflection: the definition ``sun_moon`` uses for both the Sun and the Moon."""
     Time, get_body_barycentric, _, u = astropy_offline
     at = _astropy_tdb(Time, ts)
     earth = get_body_barycentric("earth", at, ephemeris="builtin").xyz.to_value(u.m).T
-    light_time_s = np.zeros(len(ts))
-    for _ in range(4):
-        target_t = at - light_time_s * u.s
-        target = get_body_barycentric(body, target_t, ephemeris="builtin").xyz.to_value(u.m).T
-        light_time_s = np.linalg.norm(target - earth, axis=1) / C_M_S
+    target = get_body_barycentric(body, at, ephemeris="builtin").xyz.to_value(u.m).T
     return target - earth
 
 

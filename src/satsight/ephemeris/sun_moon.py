@@ -8,14 +8,27 @@ skyfield on TDB. The kernel ``de421.bsp`` is the copy shipped by the ``skyfield-
 package; it covers 1899-07-29 to 2053-10-09, and times outside raise ``SatsightError``.
 Nothing is ever downloaded.
 
-Which position: **geometric, corrected for light time** (skyfield's ``observe``: the body
-where it was when the light now arriving at the Earth's centre left it; about 499 s for the
-Sun, 1.3 s for the Moon). Annual aberration (up to 20.5 arcsec, from the Earth's 30 km/s
-orbital velocity) and gravitational light deflection are *not* applied: they would turn
-this into the apparent direction, but they shift the Sun and the Moon by less than 21 arcsec
-(1e-4 rad), which is irrelevant for lighting and shadow directions. The vectors are formed
-from barycentric (BCRS) ephemeris positions; the BCRS -> GCRS relativistic scale change
-(about 1e-8) is neglected as well.
+Which position: **geometric**, for both bodies: the body's barycentric (BCRS) position
+minus the Earth's at the *same* instant, ``(eph[body] - eph["earth"]).at(t)``, i.e. where
+the body is at t in the Earth-centred frame, with no light-time, aberration or deflection
+correction. This is the position that the orbits (:mod:`satsight.ephemeris.orbits`, also
+geometric) and shadow and eclipse geometry need, and it is the same definition for the Sun
+and the Moon.
+
+Why not light time alone: correcting for light time in the barycentric frame without also
+applying aberration (skyfield's ``observe``, an *astrometric* position) moves a body back
+along its barycentric path by the light time, so the Earth's own 30 km/s orbital motion
+enters. For the Sun (499 s; its barycentric speed is ~12 m/s) this shifts it by 5-8 km,
+0.01 arcsec; for the Moon (1.3 s) it shifts it by 35-41 km, 8-21 arcsec from its
+geometric position, which is the error this module once had. The *apparent* position
+(light time plus annual aberration) differs from the geometric one by the body's motion
+relative to the Earth during the light time and the aberration: about 20.5 arcsec for the
+Sun (annual aberration; irrelevant for lighting and shadow directions, 1e-4 rad) and
+0.7 arcsec (~1.3 km) for the Moon. The BCRS -> GCRS relativistic scale change (about
+1e-8) is neglected.
+
+Checked (tests/ephemeris/test_moon_position.py) against astropy reading the same
+``de421.bsp`` through jplephem with its own (ERFA) TDB: both bodies agree to 4e-5 m.
 
 J2000 / EME2000: the mean equator and equinox of J2000.0 (the dynamical frame that
 "EME2000" denotes in the strict sense) differs from GCRS/ICRS by a constant **frame bias**
@@ -89,17 +102,19 @@ def clear_cache() -> None:
 def _positions_gcrs_m(times: Time, name: str) -> np.ndarray:
     eph = ephemeris()
     try:
-        astrometric = eph["earth"].at(times).observe(eph[name])
+        # Geometric: both ends at the same instant (module docstring). Subtracting the two
+        # vector sums drops their common segments (the Earth-Moon barycentre for the Moon).
+        geometric = (eph[name] - eph["earth"]).at(times)
     except EphemerisRangeError as e:
         raise SatsightError(
             f"time outside the span of {EPHEMERIS_FILE} (1899-07-29 to 2053-10-09): {e}"
         ) from e
-    pos = np.asarray(astrometric.position.m, dtype=np.float64)
+    pos = np.asarray(geometric.position.m, dtype=np.float64)
     return pos.reshape(3, -1).T.copy()
 
 
 def sun_position_gcrs_m(times: Time) -> np.ndarray:
-    """(N, 3) geocentric GCRS position of the Sun, m (geometric, light-time corrected).
+    """(N, 3) geocentric GCRS position of the Sun, m (geometric: no light time, no aberration).
 
     ``times``: a scalar (N = 1) or (N,) skyfield ``Time``, e.g. from
     :func:`satsight.ephemeris.time.epoch_times`.
@@ -108,7 +123,7 @@ def sun_position_gcrs_m(times: Time) -> np.ndarray:
 
 
 def moon_position_gcrs_m(times: Time) -> np.ndarray:
-    """(N, 3) geocentric GCRS position of the Moon, m (geometric, light-time corrected).
+    """(N, 3) geocentric GCRS position of the Moon, m (geometric: no light time, no aberration).
 
     ``times``: a scalar (N = 1) or (N,) skyfield ``Time``.
     """
