@@ -15,6 +15,11 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
+from satsight.ephemeris.occultation import (
+    DEFAULT_ATMOSPHERE_MARGIN_M,
+    earth_occults,
+    los_clearance_m,
+)
 from satsight.ephemeris.orbits import (
     EARTH_EQUATORIAL_RADIUS_M,
     MU_EARTH_M3_S2,
@@ -23,22 +28,21 @@ from satsight.ephemeris.orbits import (
     propagate,
     state_from_elements,
 )
+from satsight.ephemeris.shadow import (
+    SUN_RADIUS_M,
+    beta_angle_rad,
+    cylindrical_eclipse_duration_s,
+    in_cylindrical_shadow,
+    sunlit_fraction,
+)
 from satsight.ephemeris.sun_moon import AU_M, sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times
 from satsight.ephemeris.visibility import (
-    DEFAULT_ATMOSPHERE_MARGIN_M,
-    SUN_RADIUS_M,
     FrameVisibility,
     VisibilityLimits,
     assess_visibility,
-    beta_angle_rad,
-    cylindrical_eclipse_duration_s,
-    earth_occults,
-    in_cylindrical_shadow,
-    los_clearance_m,
     phase_angle_rad,
     sun_boresight_angle_rad,
-    sunlit_fraction,
 )
 from satsight.errors import SatsightError
 

@@ -30,11 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from satsight.ephemeris.wgs84 import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
 from satsight.errors import SatsightError
-
-WGS84_SEMI_MAJOR_AXIS_M = 6_378_137.0
-WGS84_INVERSE_FLATTENING = 298.257223563
-WGS84_SEMI_MINOR_AXIS_M = WGS84_SEMI_MAJOR_AXIS_M * (1.0 - 1.0 / WGS84_INVERSE_FLATTENING)
 
 #: Background label values: what a pixel-centre ray that misses the target meets.
 BACKGROUND_SPACE, BACKGROUND_EARTH, BACKGROUND_MOON = 0, 1, 2
