@@ -54,8 +54,10 @@ def body_from_cam(track, i: int) -> np.ndarray:
 
 
 def target_states(scenario, times_s):
+    """The target's orbit as the planner flies it: J2 about the true pole from the epoch
+    (the propagation itself is tested in tests/ephemeris)."""
     r0, v0 = state_from_elements(scenario.orbit.build())
-    return propagate(r0, v0, times_s, j2=scenario.propagation.j2)
+    return propagate(r0, v0, times_s, j2=scenario.propagation.j2, epoch=scenario.epoch_utc)
 
 
 def test_fly_around_frames_every_5_degrees_look_at_the_box_centre() -> None:

@@ -464,11 +464,20 @@ class VisibilityConfig(_Strict):
 
 
 class PropagationConfig(_Strict):
-    """How both spacecraft are propagated: RK4 at a fixed step (the paper: 1 s) or DOP853."""
+    """How both spacecraft are propagated: RK4 at a fixed step (the paper: 1 s) or DOP853.
+
+    j2: the Earth's oblateness. j2_axis: ``true_pole`` (the ITRS pole at each instant, from
+    the scenario's epoch; default) or ``gcrs_z`` (the GCRS z axis: an approximation that
+    moves a LEO satellite by up to ~0.4 km per orbit at 2025 and ~0.9 km at 2050, see
+    docs/design.md); without an epoch the GCRS z axis is used. max_zonal_degree: 2 (J2), 3
+    or 4 (J3, J4; EGM96).
+    """
 
     method: Literal["rk4", "dop853"] = "rk4"
     step_s: float = Field(default=1.0, gt=0, le=600)
     j2: bool = True
+    j2_axis: Literal["true_pole", "gcrs_z"] = "true_pole"
+    max_zonal_degree: int = Field(default=2, ge=2, le=4)
 
 
 def natural_span_s(orbit: TrajectoryConfig, observer: BaseModel) -> float:

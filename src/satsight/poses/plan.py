@@ -37,6 +37,8 @@ import numpy as np
 from satsight.config.orbital import ABSOLUTE_TRAJECTORY_MODES
 from satsight.config.orbital import natural_span_s as config_natural_span_s
 from satsight.config.scenario import Scenario
+from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
+from satsight.ephemeris.occultation import inside_earth
 from satsight.ephemeris.orbits import (
     EARTH_EQUATORIAL_RADIUS_M,
     J2,
@@ -50,6 +52,7 @@ from satsight.ephemeris.orbits import (
 from satsight.ephemeris.sun_moon import AU_M, moon_position_gcrs_m, sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times, format_epoch_utc
 from satsight.ephemeris.visibility import assess_visibility
+from satsight.ephemeris.wgs84 import geodetic_height_m
 from satsight.errors import SatsightError
 from satsight.frames.orbital import inertial_from_relative_rtn, relative_rtn, rtn_from_inertial
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_conjugate
@@ -366,9 +369,20 @@ def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
     prop = scenario.propagation
     sampler, observer = scenario.sampler, scenario.observer
 
+    # J2 about the true pole needs the epoch; without one the GCRS z axis stands in.
+    true_pole = prop.j2_axis == "true_pole" and scenario.epoch_utc is not None
+
     def fly(r_start: np.ndarray, v_start: np.ndarray, times: np.ndarray):
         return propagate(
-            r_start, v_start, times, j2=prop.j2, method=prop.method, step_s=prop.step_s
+            r_start,
+            v_start,
+            times,
+            j2=prop.j2,
+            method=prop.method,
+            step_s=prop.step_s,
+            epoch=scenario.epoch_utc if true_pole else None,
+            j2_axis="true_pole" if true_pole else "gcrs_z",
+            max_zonal_degree=prop.max_zonal_degree,
         )
 
     times = _sspt_times(scenario)
@@ -416,12 +430,17 @@ def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
         flight = _sspt_flight(scenario, center_body)
     times, r_t, v_t = flight.times_s, flight.r_target_m, flight.v_target_m_s
     center, r_obs = flight.center_m, flight.r_camera_m
-    buried = np.flatnonzero(np.linalg.norm(r_obs, axis=1) < EARTH_EQUATORIAL_RADIUS_M)
+    instants = epoch_times(scenario.epoch_utc, times)
+    # The Earth's orientation per frame: the WGS-84 ellipsoid for the inside-the-Earth test,
+    # occultation and shadow.
+    R_itrs = R_itrs_from_gcrs(instants)
+    buried = np.flatnonzero(np.atleast_1d(inside_earth(r_obs, R_itrs)))
     if buried.size:
         i = int(buried[0])
+        height_m = float(geodetic_height_m((R_itrs[i] @ r_obs[i])[None, :])[0][0])
         raise SatsightError(
             f"frame {i} (t = {times[i]:.1f} s) puts the camera inside the Earth "
-            f"({np.linalg.norm(r_obs[i]) / 1e3:.1f} km from its centre); check the observer's "
+            f"({-height_m / 1e3:.1f} km below the WGS-84 surface); check the observer's "
             "mode and distances"
         )
     reference, reference_axis = camera_reference(
@@ -433,7 +452,6 @@ def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
     q_cam_from_body, t_cam_from_body = cam_from_body(
         q_gcrs_from_cam, flight.q_gcrs_from_body, r_obs, r_t
     )
-    instants = epoch_times(scenario.epoch_utc, times)
     sun = sun_position_gcrs_m(instants)
     moon = moon_position_gcrs_m(instants)
     R_cam_from_gcrs = np.swapaxes(matrix_from_quaternion(q_gcrs_from_cam), -1, -2)
@@ -447,7 +465,9 @@ def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
     earth_dir, earth_dist = from_target_cam(np.zeros_like(center))
     moon_dir, moon_dist = from_target_cam(moon)
     rho_rtn = np.einsum("nij,nj->ni", rtn_from_inertial(r_t, v_t), r_obs - center)
-    visibility = assess_visibility(center, r_obs, sun, scenario.visibility.limits())
+    visibility = assess_visibility(
+        center, r_obs, sun, scenario.visibility.limits(), R_itrs_from_gcrs=R_itrs
+    )
     flags = {name: np.asarray(getattr(visibility, name), dtype=bool) for name in FLAG_FIELDS}
     if scenario.visibility.on_fail == "keep":
         flags = {name: np.zeros(len(times), dtype=bool) for name in FLAG_FIELDS}
