@@ -10,7 +10,7 @@ import click
 import numpy as np
 from rich.console import Console
 
-from satsight.commands.shell import console, example_scenario_path
+from satsight.commands.shell import console, example_scenario_path, report_folder_option
 
 # Rows of the printed plan shown in full; longer plans show their head and tail.
 _PLAN_ROWS_SHOWN = 40
@@ -18,14 +18,7 @@ _PLAN_ROWS_SHOWN = 40
 
 @click.command()
 @click.argument("config", type=click.Path(path_type=Path))
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(path_type=Path),
-    default=Path("out/plan"),
-    show_default=True,
-    help="folder for plan.csv and the plots (created; files of the same name are replaced)",
-)
+@report_folder_option("out/plan", "plan.csv and the plots")
 @click.option("--no-plots", is_flag=True, help="write plan.csv only")
 def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
     """Print the frame plan of CONFIG without rendering, and plot it."""
@@ -73,14 +66,7 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
 
 @click.command()
 @click.argument("config", type=click.Path(path_type=Path), required=False)
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(path_type=Path),
-    default=Path("out/camera"),
-    show_default=True,
-    help="folder for camera.json and system_mtf.png (created; files of the same name are replaced)",
-)
+@report_folder_option("out/camera", "camera.json and system_mtf.png")
 def camera(config: Path | None, out_dir: Path) -> None:
     """Describe the camera of CONFIG (default: the bundled example): optics, sampling,
     exposure and limiting magnitude at SNR 5; plot its system MTF."""
@@ -155,15 +141,7 @@ def satellite(satellite_class: str, seed: int, out_path: Path) -> None:
 
 @click.command()
 @click.argument("config", type=click.Path(path_type=Path))
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(path_type=Path),
-    default=Path("out/lightcurve"),
-    show_default=True,
-    help="folder for lightcurve.csv and lightcurve.png (created; files of the same name "
-    "are replaced)",
-)
+@report_folder_option("out/lightcurve", "lightcurve.csv and lightcurve.png")
 @click.option(
     "--size-px",
     default=96,

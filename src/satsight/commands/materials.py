@@ -10,7 +10,7 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from satsight.commands.shell import console
+from satsight.commands.shell import console, report_folder_option
 from satsight.errors import SatsightError
 
 
@@ -40,14 +40,7 @@ def _band_nm(text: str) -> tuple[float, float]:
     type=click.Choice(["ccd231_84", "flat"]),
     help="detector quantum efficiency curve that weights the band integration",
 )
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(path_type=Path),
-    default=Path("out/materials"),
-    show_default=True,
-    help="folder for materials.json and material_spectra.png (created; files replaced)",
-)
+@report_folder_option("out/materials", "materials.json and material_spectra.png")
 def materials(band_text: str, qe: str, out_dir: Path) -> None:
     """List the spectral material library with each material's in-band RGB reflectance,
     and plot the spectra (400-1800 nm)."""
@@ -94,13 +87,8 @@ def materials(band_text: str, qe: str, out_dir: Path) -> None:
     type=click.Choice(["improved_phong", "phong", "ggx"]),
     help="reflection model to fit (paper Eq. 17, Eq. 16, or the GGX material model)",
 )
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(path_type=Path),
-    default=Path("out/brdf_fit"),
-    show_default=True,
-    help="folder for the fitted parameters (YAML) and the plane-of-incidence plot",
+@report_folder_option(
+    "out/brdf_fit", "the fitted parameters (YAML) and the plane-of-incidence plot"
 )
 def fit_brdf(measurements: Path, model: str, out_dir: Path) -> None:
     """Fit a reflection model to the measured BRDF samples in MEASUREMENTS (CSV: theta_i_deg,

@@ -6,6 +6,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+import click
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -32,3 +33,16 @@ def progress_bar() -> Progress:
 
 class Interrupted(SatsightError):
     """The user stopped a run; committed frames are kept (exit status 130)."""
+
+
+def report_folder_option(default: str, holds: str):
+    """The ``--out DIR`` option of a command that writes a few report files (``holds``) into
+    a folder of their own: created, files of the same name replaced."""
+    return click.option(
+        "--out",
+        "out_dir",
+        type=click.Path(path_type=Path),
+        default=Path(default),
+        show_default=True,
+        help=f"folder for {holds} (created; files of the same name are replaced)",
+    )
