@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from satsight import __version__
-from satsight.config.scenario import Scenario, TargetConfig
+from satsight.camera.pinhole import PinholeCamera
+from satsight.config.scenario import CameraConfig, Scenario, TargetConfig
 from satsight.dataset.frame_files import FrameArrays
 from satsight.dataset.journal import file_checksum
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
@@ -184,10 +185,11 @@ def sensor_noise_rng(scenario_seed: int, frame_index: int) -> np.random.Generato
     return np.random.default_rng(np.random.SeedSequence([scenario_seed, frame_index, 1]))
 
 
-def build_sensor(scenario: Scenario) -> SensorChain:
+def build_sensor(scenario: Scenario, camera: CameraConfig | None = None) -> SensorChain:
     """The scenario's camera optics and detector, ready to expose frames (the blur kernel
-    designed for the render settings' sub-pixel sampling)."""
-    camera = scenario.camera
+    designed for the render settings' sub-pixel sampling). camera: another mode of it (the
+    far camera, ``CameraConfig.far_mode``); default the scenario's camera."""
+    camera = scenario.camera if camera is None else camera
     return SensorChain(
         camera=camera.build(),
         optics=camera.build_optics(),
@@ -314,6 +316,18 @@ def expose_frame(
     return dn_image, {"sensor": labels, **stars}
 
 
+def camera_summary(camera: PinholeCamera) -> dict:
+    """A pinhole camera's numbers, JSON-ready, for labels.json."""
+    return {
+        "focal_length_m": camera.focal_length_m,
+        "pixel_pitch_m": camera.pixel_pitch_m,
+        "image_size_px": [camera.width_px, camera.height_px],
+        "K": camera.K.tolist(),
+        "fov_x_deg": float(np.degrees(camera.fov_x_rad)),
+        "fov_y_deg": float(np.degrees(camera.fov_y_rad)),
+    }
+
+
 def sensor_summary(sensor: SensorChain) -> dict:
     """The camera's optics, detector and exposure rule, JSON-ready, for labels.json."""
     return {
@@ -351,6 +365,7 @@ class RenderedFrame:
     light: LightField
     sun: SunLight
     image: RadianceImage
+    camera_mode: str = "primary"
 
 
 class FrameEngine:
@@ -367,7 +382,22 @@ class FrameEngine:
         self.camera = scenario.camera.build()
         self.track, self.plan_indices = planned_frames(scenario, self.mesh)
         self.sensor = build_sensor(scenario)
+        # Camera modes: "primary", and "far" beyond camera.far.switch_range_km.
+        self.modes: dict[str, tuple[PinholeCamera, SensorChain]] = {
+            "primary": (self.camera, self.sensor)
+        }
+        far = scenario.camera.far_mode()
+        if far is not None:
+            self.modes["far"] = (far.build(), build_sensor(scenario, far))
         self._renderer: Renderer | None = None
+
+    def camera_mode(self, plan_index: int) -> str:
+        """The camera mode of plan frame ``plan_index``: ``far`` when its range to the
+        target's box centre is beyond ``camera.far.switch_range_km``, else ``primary``."""
+        far = self.scenario.camera.far
+        if far is not None and self.track.range_m[plan_index] > far.switch_range_km * 1e3:
+            return "far"
+        return "primary"
 
     @property
     def frame_count(self) -> int:
@@ -394,14 +424,16 @@ class FrameEngine:
         plan_index = int(self.plan_indices[frame_index])
         cam_from_body = self.track.cam_from_body(plan_index)
         light, sun = frame_light(self.scenario, self.track, plan_index)
+        mode = self.camera_mode(plan_index)
+        camera, sensor = self.modes[mode]
         image = self.renderer.render(
-            self.camera,
+            camera,
             cam_from_body,
             light,
             seed=frame_seed(self.scenario.seed, plan_index),
-            margin_px=self.sensor.margin_px,
+            margin_px=sensor.margin_px,
         )
-        return RenderedFrame(frame_index, plan_index, cam_from_body, light, sun, image)
+        return RenderedFrame(frame_index, plan_index, cam_from_body, light, sun, image, mode)
 
     def finish(self, frame: RenderedFrame) -> tuple[dict, FrameArrays, tuple | None]:
         """Labels, optics and detector of a rendered frame.
@@ -410,25 +442,28 @@ class FrameEngine:
         made of, and the crop window (x0, y0, x1, y1), or None without a crop.
         """
         scenario, plan_index = self.scenario, frame.plan_index
-        labels = frame_labels(self.mesh, self.camera, frame.cam_from_body, frame.sun, frame.image)
+        camera, sensor = self.modes[frame.camera_mode]
+        labels = frame_labels(self.mesh, camera, frame.cam_from_body, frame.sun, frame.image)
         sun_irradiance, sun_distance_m = self.sun_irradiance_at_camera(plan_index)
         photometry = frame_photometry(
             frame.image,
-            self.camera,
-            self.sensor.channel_weights,
+            camera,
+            sensor.channel_weights,
             labels["keypoints_px"][:8],
             sun_irradiance,
             sun_distance_m,
         )
         dn_image, sensor_labels = expose_frame(
             scenario,
-            self.sensor,
+            sensor,
             self.track,
             plan_index,
             frame.image,
             frame.cam_from_body.apply(self.mesh.center_m),
         )
         record: dict = {"frame_index": frame.frame_index, "plan_index": plan_index}
+        if len(self.modes) > 1:
+            record["camera_mode"] = frame.camera_mode
         if scenario.frames:
             record["view"] = scenario.frames[plan_index].model_dump()
         record["plan"] = self.track.record(plan_index)
@@ -460,7 +495,7 @@ class FrameEngine:
         from satsight.render.backend import use_variant
 
         scenario, camera, mesh = self.scenario, self.camera, self.mesh
-        return {
+        header = {
             "satsight_version": __version__,
             "scenario": scenario.name,
             "frame_count": self.frame_count,
@@ -471,14 +506,7 @@ class FrameEngine:
                 **scenario.outputs.model_dump(mode="json"),
                 "file_keys": list(scenario.outputs.file_keys()),
             },
-            "camera": {
-                "focal_length_m": camera.focal_length_m,
-                "pixel_pitch_m": camera.pixel_pitch_m,
-                "image_size_px": [camera.width_px, camera.height_px],
-                "K": camera.K.tolist(),
-                "fov_x_deg": float(np.degrees(camera.fov_x_rad)),
-                "fov_y_deg": float(np.degrees(camera.fov_y_rad)),
-            },
+            "camera": camera_summary(camera),
             "sun": {
                 "description": "per frame: sun_direction_body, sun_direction_cam and "
                 "sun_irradiance_w_m2 (in band, at the target, after the Earth's shadow)",
@@ -504,3 +532,15 @@ class FrameEngine:
                 else file_checksum(scenario.target.mesh.path)["sha256"],
             },
         }
+        if "far" in self.modes:
+            far_camera, far_sensor = self.modes["far"]
+            header["far_camera"] = {
+                "description": "frames with camera_mode 'far' (range to the target's box "
+                "centre beyond switch_range_m) are taken with this camera and sensor; "
+                "'camera' and 'sensor' above describe the 'primary' frames",
+                "preset": scenario.camera.far.preset,
+                "switch_range_m": scenario.camera.far.switch_range_km * 1e3,
+                "camera": camera_summary(far_camera),
+                "sensor": sensor_summary(far_sensor),
+            }
+        return header

@@ -64,10 +64,21 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+class FarCameraConfig(_Strict):
+    """The second mode of a dual-mode camera (the paper switches from the wide-field to the
+    high-resolution camera at 20 km): frames whose range to the target's box centre is
+    beyond ``switch_range_km`` are taken with ``preset``'s focal length and optics, on the
+    same detector (pixel pitch, image size, fixed pattern, exposure rule)."""
+
+    preset: Literal["high_resolution", "wide_field"] = "wide_field"
+    switch_range_km: float = Field(gt=0)
+
+
 class CameraConfig(_Strict):
     """Camera: a preset, optionally with any of its values overridden, and its sensor.
 
     ``seed`` fixes the detector's fixed pattern (PRNU and DSNU maps): one camera, one seed.
+    ``far``: a second camera mode for frames beyond a range (``FarCameraConfig``).
     """
 
     preset: Literal["high_resolution", "wide_field"] = "high_resolution"
@@ -79,6 +90,21 @@ class CameraConfig(_Strict):
     detector: DetectorConfig = DetectorConfig()
     exposure: ExposureConfig = ExposureConfig()
     seed: int = Field(default=0, ge=0)
+    far: FarCameraConfig | None = None
+
+    def far_mode(self) -> CameraConfig | None:
+        """The camera of the far frames: this one with the far preset's focal length and
+        optics (None without a ``far`` mode)."""
+        if self.far is None:
+            return None
+        return self.model_copy(
+            update={
+                "preset": self.far.preset,
+                "focal_length_m": None,
+                "optics": OpticsConfig(),
+                "far": None,
+            }
+        )
 
     @model_validator(mode="after")
     def _sensor_fits(self) -> CameraConfig:
