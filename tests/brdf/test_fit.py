@@ -19,21 +19,20 @@ import numpy as np
 import pytest
 import yaml
 
-from satsight.brdf.fit import (
-    ALBEDO_TOLERANCE,
-    evaluate_model,
-    fit_brdf,
-    fit_brdf_command,
-    fit_metrics,
-    material_entry,
-    max_directional_albedo,
-    unpack_parameters,
-)
+from satsight.brdf.fit import fit_brdf
+from satsight.brdf.fit_files import fit_brdf_command, material_entry
 from satsight.brdf.measurements import (
     BrdfMeasurements,
     measurements_from_degrees,
     read_brdf_csv,
     write_brdf_csv,
+)
+from satsight.brdf.metrics import fit_metrics
+from satsight.brdf.parameters import (
+    ALBEDO_TOLERANCE,
+    evaluate_model,
+    max_directional_albedo,
+    unpack_parameters,
 )
 from satsight.errors import SatsightError
 

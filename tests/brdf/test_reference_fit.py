@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from builders import plate_parts
-from satsight.brdf.fit import ALBEDO_TOLERANCE, max_directional_albedo
 from satsight.brdf.models import ggx_brdf
+from satsight.brdf.parameters import ALBEDO_TOLERANCE, max_directional_albedo
 from satsight.brdf.reference_fit import (
     fit_phong_to_ggx,
     ggx_reference_table,

@@ -43,8 +43,10 @@ Metrics (the paper's Table 4, section 4.4, for a BRDF fit; ``fit_metrics``):
   among the measured ones (per channel; sets whose measured values are all 0 are left
   out). Both are reported when available.
 
-``fit_brdf_command`` is what ``satsight fit-brdf`` does: read, fit, write the YAML entry
-and the plot, return a report.
+Modules: ``parameters`` (names, bounds, transform, evaluation, energy check), ``metrics``,
+this one (the fit), ``fit_files`` (the YAML entry, and ``fit_brdf_command``, what
+``satsight fit-brdf`` does: read, fit, write the YAML entry and the plot, return a
+report).
 """
 
 from __future__ import annotations
@@ -52,283 +54,31 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.optimize import least_squares
 
-from satsight.brdf.measurements import BrdfMeasurements, read_brdf_csv
+from satsight.brdf.measurements import BrdfMeasurements
+from satsight.brdf.metrics import FitMetrics, fit_metrics
 from satsight.brdf.models import (
     MASKINGS,
-    MIN_GGX_ALPHA,
-    directional_albedo,
-    ggx_brdf,
-    ggx_lobe_width_rad,
-    improved_phong_brdf,
-    phong_brdf,
-    phong_lobe_width_rad,
+)
+from satsight.brdf.parameters import (
+    ALBEDO_TOLERANCE,
+    FITTABLE_MODELS,
+    evaluate_model,
+    from_physical,
+    max_directional_albedo,
+    parameter_bounds,
+    parameter_names,
+    shared_parameter_names,
+    to_physical,
+    unpack_parameters,
 )
 from satsight.errors import SatsightError
-from satsight.scene.materials import (
-    MAX_DIFFUSE_EXPONENT_C,
-    MAX_GLOSS_EXPONENT,
-    MAX_LOBE_DECAY_B,
-    MIN_GLOSS_EXPONENT,
-)
 
-FITTABLE_MODELS = ("phong", "improved_phong", "ggx")
-MAX_IOR = 4.0
-MIN_ROUGHNESS = math.sqrt(MIN_GGX_ALPHA)
-ALBEDO_TOLERANCE = 2e-3  # quadrature error of ``directional_albedo`` with margin
-ALBEDO_CHECK_THETAS_DEG = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 85.0, 89.0)
 _DIFF_STEP = 1e-6
 _STARTS_OPTIMISED = 2
-
-
-# ----------------------------------------------------------------------------------------
-# Parametrisation
-
-
-def _shared_names(model: str) -> tuple[str, ...]:
-    return {
-        "phong": ("g",),
-        "improved_phong": ("g", "a", "b", "c"),
-        "ggx": ("metallic", "roughness", "ior"),
-    }[model]
-
-
-def _channel_names(model: str) -> tuple[str, ...]:
-    return ("base",) if model == "ggx" else ("kd", "ks")
-
-
-def parameter_names(model: str, channel_names: tuple[str, ...]) -> tuple[str, ...]:
-    """Names of the physical parameters in the order of ``BrdfFit.values``: per-channel
-    ones as ``kd[R]``, then the shared ones."""
-    names = [f"{p}[{c}]" for p in _channel_names(model) for c in channel_names]
-    return (*names, *_shared_names(model))
-
-
-def _bounds(model: str, n: int) -> tuple[np.ndarray, np.ndarray]:
-    if model == "ggx":
-        lo = [0.0] * n + [0.0, MIN_ROUGHNESS, 1.0]
-        hi = [1.0] * n + [1.0, 1.0, MAX_IOR]
-    else:
-        lo = [0.0] * (2 * n) + [math.log(MIN_GLOSS_EXPONENT)]
-        hi = [1.0] * (2 * n) + [math.log(MAX_GLOSS_EXPONENT)]
-        if model == "improved_phong":
-            lo += [0.0, 0.0, 0.0]
-            hi += [1.0, MAX_LOBE_DECAY_B, MAX_DIFFUSE_EXPONENT_C]
-    return np.array(lo), np.array(hi)
-
-
-def _to_physical(model: str, u: np.ndarray, n: int) -> np.ndarray:
-    """Physical parameter vector (order of ``parameter_names``) from the fitted variables."""
-    if model == "ggx":
-        return np.array(u, dtype=np.float64)
-    t, s = u[:n], u[n : 2 * n]
-    rest = np.array(u[2 * n :], dtype=np.float64)
-    rest[0] = math.exp(rest[0])
-    return np.concatenate([t * (1.0 - s), t * s, rest])
-
-
-def _from_physical(model: str, p: np.ndarray, n: int) -> np.ndarray:
-    if model == "ggx":
-        return np.array(p, dtype=np.float64)
-    kd, ks = p[:n], p[n : 2 * n]
-    t = kd + ks
-    s = np.where(t > 0.0, ks / np.where(t > 0.0, t, 1.0), 0.5)
-    rest = np.array(p[2 * n :], dtype=np.float64)
-    rest[0] = math.log(rest[0])
-    return np.concatenate([t, s, rest])
-
-
-def unpack_parameters(model: str, values: np.ndarray, n: int) -> dict[str, np.ndarray | float]:
-    """Physical parameter vector -> keyword arguments of the model function (per-channel
-    values as (n,) arrays, shared ones as floats)."""
-    values = np.asarray(values, dtype=np.float64)
-    out: dict[str, np.ndarray | float] = {}
-    for k, name in enumerate(_channel_names(model)):
-        out[name] = values[k * n : (k + 1) * n]
-    offset = len(_channel_names(model)) * n
-    for k, name in enumerate(_shared_names(model)):
-        out[name] = float(values[offset + k])
-    return out
-
-
-def evaluate_model(
-    model: str,
-    params: dict[str, np.ndarray | float],
-    wi: np.ndarray,
-    wo: np.ndarray,
-    channel: np.ndarray,
-    masking: str = "schlick",
-) -> np.ndarray:
-    """f_r (sr^-1) of the model at direction pairs wi, wo (N, 3), each pair in its channel
-    (N,) int (per-channel parameters are picked per row)."""
-    per_row = {
-        k: (np.asarray(v)[channel] if isinstance(v, np.ndarray) else v) for k, v in params.items()
-    }
-    if model == "phong":
-        return phong_brdf(wi, wo, per_row["kd"], per_row["ks"], per_row["g"])
-    if model == "improved_phong":
-        return improved_phong_brdf(
-            wi,
-            wo,
-            per_row["kd"],
-            per_row["ks"],
-            per_row["g"],
-            per_row["a"],
-            per_row["b"],
-            per_row["c"],
-        )
-    if model == "ggx":
-        return ggx_brdf(
-            wi,
-            wo,
-            per_row["base"],
-            per_row["metallic"],
-            per_row["roughness"],
-            per_row["ior"],
-            masking,
-        )
-    raise SatsightError(f"unknown BRDF model '{model}'; use one of {', '.join(FITTABLE_MODELS)}")
-
-
-def lobe_width_rad(model: str, params: dict[str, np.ndarray | float]) -> float:
-    """Angular width of the model's specular lobe (for the albedo quadrature)."""
-    if model == "ggx":
-        return ggx_lobe_width_rad(float(params["roughness"]))
-    width = phong_lobe_width_rad(float(params["g"]))
-    b = float(params.get("b", 0.0))
-    if b > 1.0:  # exp(-b (1 - cos beta)^(1/pi)) falls to 1/e at beta = sqrt(2) b^(-pi/2)
-        width = min(width, math.sqrt(2.0) * b ** (-0.5 * math.pi))
-    return width
-
-
-def max_directional_albedo(
-    model: str,
-    params: dict[str, np.ndarray | float],
-    masking: str = "schlick",
-    thetas_deg=ALBEDO_CHECK_THETAS_DEG,
-) -> tuple[float, float]:
-    """(largest directional albedo over channels and incidence angles, its theta_i in deg),
-    by the quadrature of ``satsight.brdf.models.directional_albedo``."""
-    channel_values = {k: v for k, v in params.items() if isinstance(v, np.ndarray)}
-    n = len(next(iter(channel_values.values())))
-    channel = np.arange(n)
-
-    def brdf(wi, wo):
-        shape = wi.shape[:-1]
-        wi_c = np.broadcast_to(wi[..., None, :], (*shape, n, 3))
-        wo_c = np.broadcast_to(wo[..., None, :], (*shape, n, 3))
-        ch = np.broadcast_to(channel, (*shape, n))
-        return evaluate_model(model, params, wi_c, wo_c, ch, masking)
-
-    width = lobe_width_rad(model, params)
-    best, best_theta = -math.inf, 0.0
-    for theta in thetas_deg:
-        value = float(np.max(directional_albedo(brdf, math.radians(theta), width)))
-        if value > best:
-            best, best_theta = value, float(theta)
-    return best, best_theta
-
-
-# ----------------------------------------------------------------------------------------
-# Metrics (paper Table 4)
-
-
-@dataclass(frozen=True)
-class FitMetrics:
-    """Agreement of a fit with the measurements (definitions in the module docstring).
-
-    mse_sr2: mean squared error (sr^-2); psnr_db: 10 log10(peak^2 / MSE); peak_per_sr: the
-    largest measured value; angular_error_deg: the spectral angle with >= 2 channels, else
-    the peak-direction error; spectral_angle_deg (None with one channel) and
-    peak_direction_error_deg: both definitions.
-    """
-
-    mse_sr2: float
-    psnr_db: float
-    peak_per_sr: float
-    angular_error_deg: float
-    angular_error_kind: str
-    spectral_angle_deg: float | None
-    peak_direction_error_deg: float
-
-    def as_dict(self) -> dict[str, float | str | None]:
-        return {
-            "mse_sr2": self.mse_sr2,
-            "psnr_db": self.psnr_db,
-            "peak_brdf_per_sr": self.peak_per_sr,
-            "angular_error_deg": self.angular_error_deg,
-            "angular_error_definition": self.angular_error_kind,
-            "spectral_angle_deg": self.spectral_angle_deg,
-            "peak_direction_error_deg": self.peak_direction_error_deg,
-        }
-
-
-def _angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Angle (rad) between rows of u and v (..., k), stable near 0 and pi."""
-    nu = np.linalg.norm(u, axis=-1, keepdims=True)
-    nv = np.linalg.norm(v, axis=-1, keepdims=True)
-    a = u / np.where(nu > 0, nu, 1.0)
-    b = v / np.where(nv > 0, nv, 1.0)
-    return 2.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
-
-
-def _group_keys(*angles_rad: np.ndarray) -> np.ndarray:
-    """Integer group index per row for equal angle tuples (to 1e-7 rad)."""
-    stacked = np.round(np.stack(angles_rad, axis=1) * 1e7).astype(np.int64)
-    _, inverse = np.unique(stacked, axis=0, return_inverse=True)
-    return inverse.reshape(-1)
-
-
-def fit_metrics(measurements: BrdfMeasurements, fitted_per_sr: np.ndarray) -> FitMetrics:
-    """MSE, PSNR and angular errors of fitted values (N,) against the measured ones."""
-    measured = measurements.brdf_per_sr
-    fitted = np.asarray(fitted_per_sr, dtype=np.float64)
-    mse = float(np.mean((fitted - measured) ** 2))
-    peak = float(np.max(measured))
-    psnr = math.inf if mse == 0.0 else 10.0 * math.log10(peak * peak / mse)
-
-    m = measurements
-    # Spectral angle: geometries where every channel was measured.
-    spectral = None
-    if m.n_channels >= 2:
-        geometry = _group_keys(m.theta_i_rad, m.phi_i_rad, m.theta_o_rad, m.phi_o_rad)
-        n_geom = int(geometry.max()) + 1
-        meas_vec = np.zeros((n_geom, m.n_channels))
-        fit_vec = np.zeros((n_geom, m.n_channels))
-        count = np.zeros((n_geom, m.n_channels), dtype=int)
-        np.add.at(meas_vec, (geometry, m.channel), measured)
-        np.add.at(fit_vec, (geometry, m.channel), fitted)
-        np.add.at(count, (geometry, m.channel), 1)
-        complete = np.all(count == 1, axis=1)
-        complete &= (np.linalg.norm(meas_vec, axis=1) > 0) & (np.linalg.norm(fit_vec, axis=1) > 0)
-        if np.any(complete):
-            angles = _angle_between(meas_vec[complete], fit_vec[complete])
-            spectral = float(np.degrees(np.mean(angles)))
-
-    # Peak direction per incidence direction and channel.
-    incidence = _group_keys(m.theta_i_rad, m.phi_i_rad)
-    wo = m.wo()
-    errors = []
-    for group in np.unique(incidence):
-        for ch in range(m.n_channels):
-            rows = np.flatnonzero((incidence == group) & (m.channel == ch))
-            if rows.size < 2 or not np.any(measured[rows] > 0.0):
-                continue
-            k_meas = rows[np.argmax(measured[rows])]
-            k_fit = rows[np.argmax(fitted[rows])]
-            errors.append(float(_angle_between(wo[k_meas], wo[k_fit])))
-    peak_error = float(np.degrees(np.mean(errors))) if errors else math.nan
-
-    if spectral is not None:
-        primary, kind = spectral, "spectral angle between measured and fitted channel vectors"
-    else:
-        primary, kind = peak_error, "angle between measured and fitted specular peak directions"
-    return FitMetrics(mse, psnr, peak, primary, kind, spectral, peak_error)
 
 
 # ----------------------------------------------------------------------------------------
@@ -434,15 +184,13 @@ def fit_brdf(
     measured = measurements.brdf_per_sr
     sigma = measurements.uncertainty_per_sr
     weight = 1.0 if sigma is None else 1.0 / sigma
-    lo, hi = _bounds(model, n)
+    lo, hi = parameter_bounds(model, n)
 
     def residuals(u: np.ndarray) -> np.ndarray:
-        params = unpack_parameters(model, _to_physical(model, u, n), n)
+        params = unpack_parameters(model, to_physical(model, u, n), n)
         return (evaluate_model(model, params, wi, wo, channel, masking) - measured) * weight
 
-    candidates = [
-        np.clip(_from_physical(model, p, n), lo, hi) for p in _starts(model, measurements)
-    ]
+    candidates = [np.clip(from_physical(model, p, n), lo, hi) for p in _starts(model, measurements)]
     costs = [float(np.sum(residuals(u) ** 2)) for u in candidates]
     order = np.argsort(costs)[:_STARTS_OPTIMISED]
     best = None
@@ -460,7 +208,7 @@ def fit_brdf(
             best = result
     assert best is not None
 
-    values = _to_physical(model, best.x, n)
+    values = to_physical(model, best.x, n)
     dof = measurements.size - len(names)
     reduced_chi2 = 2.0 * best.cost / dof
     jac = best.jac
@@ -476,7 +224,7 @@ def fit_brdf(
         up, down = best.x.copy(), best.x.copy()
         up[j] += step
         down[j] -= step
-        h[:, j] = (_to_physical(model, up, n) - _to_physical(model, down, n)) / (2.0 * step)
+        h[:, j] = (to_physical(model, up, n) - to_physical(model, down, n)) / (2.0 * step)
     covariance = h @ cov_u @ h.T
     std = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     at_bounds = tuple(
@@ -523,7 +271,7 @@ def _fitted_variable_names(model: str, channel_names: tuple[str, ...]) -> tuple[
     if model == "ggx":
         return parameter_names(model, channel_names)
     per_channel = [f"{p}[{c}]" for p in ("kd+ks", "ks/(kd+ks)") for c in channel_names]
-    return (*per_channel, *_shared_names(model))
+    return (*per_channel, *shared_parameter_names(model))
 
 
 def _source(measurements: BrdfMeasurements) -> dict:
@@ -534,159 +282,3 @@ def _source(measurements: BrdfMeasurements) -> dict:
     if measurements.metadata:
         source["provenance"] = dict(measurements.metadata)
     return source
-
-
-# ----------------------------------------------------------------------------------------
-# Material-library entry (YAML) and the command
-
-
-def _is_rgb(channel_names: tuple[str, ...]) -> bool:
-    return tuple(c.upper() for c in channel_names) == ("R", "G", "B")
-
-
-def _channel_value(values: np.ndarray, channel_names: tuple[str, ...]):
-    values = [float(v) for v in values]
-    return values[0] if len(values) == 1 else values
-
-
-def material_entry(fit: BrdfFit) -> dict:
-    """The fit as a material-library entry: model, parameters (kd / kd_rgb, ks / ks_rgb, g,
-    a, b, c, or base_color / base_color_rgb, metallic, roughness, ior, masking), their
-    1-sigma uncertainties, channels, metrics, energy check, fit details and source."""
-    suffix = "_rgb" if _is_rgb(fit.channel_names) else ""
-    key = {"kd": "kd", "ks": "ks", "base": "base_color"}
-
-    def section(values: dict) -> dict:
-        out = {}
-        for name, value in values.items():
-            if isinstance(value, np.ndarray):
-                out[key[name] + suffix] = _channel_value(value, fit.channel_names)
-            else:
-                out[name] = float(value)
-        return out
-
-    parameters = section(fit.parameters)
-    if fit.model == "ggx":
-        parameters["masking"] = fit.masking
-    return {
-        "model": fit.model,
-        "parameters": parameters,
-        "parameters_std": section(fit.parameter_std),
-        "channels": {"kind": fit.channel_kind, "names": list(fit.channel_names)},
-        "metrics": fit.metrics.as_dict(),
-        "energy": {
-            "max_directional_albedo": float(fit.max_albedo),
-            "at_theta_i_deg": float(fit.max_albedo_theta_deg),
-        },
-        "fit": {
-            "n_measurements": fit.n_measurements,
-            "n_parameters": len(fit.names),
-            "weighted_by_uncertainty": fit.weighted,
-            "reduced_chi2": float(fit.reduced_chi2),
-            "parameters_at_bounds": list(fit.at_bounds),
-            "converged": fit.success,
-            "optimizer_message": fit.message,
-        },
-        "source": fit.source,
-        "library_brdf": library_brdf_block(fit),
-    }
-
-
-_LIBRARY_KEYS = {
-    "metallic": "metallic",
-    "roughness": "roughness",
-    "ior": "ior",
-    "g": "gloss_exponent_g",
-    "a": "fresnel_exponent_a",
-    "b": "lobe_decay_b",
-    "c": "diffuse_exponent_c",
-}
-
-
-def library_brdf_block(fit: BrdfFit) -> dict:
-    """The fitted shape parameters as entries ``{value, source}`` of a material-library
-    ``brdf:`` block (``satsight.scene.material_library`` names: metallic, roughness, ior,
-    gloss_exponent_g, fresnel_exponent_a, lobe_decay_b, diffuse_exponent_c); per-channel
-    reflectances stay in ``parameters``."""
-    where = fit.source.get("csv", "?")
-    source = f"{fit.model} fit to {where}, PSNR {fit.metrics.psnr_db:.1f} dB (satsight.brdf.fit)"
-    return {
-        _LIBRARY_KEYS[name]: {"value": float(value), "source": source}
-        for name, value in fit.parameters.items()
-        if name in _LIBRARY_KEYS
-    }
-
-
-def write_fit_yaml(fit: BrdfFit, path: str | Path) -> Path:
-    """Write ``material_entry(fit)`` as YAML."""
-    path = Path(path)
-    path.write_text(
-        yaml.safe_dump(material_entry(fit), sort_keys=False, default_flow_style=None),
-        encoding="utf-8",
-    )
-    return path
-
-
-@dataclass(frozen=True)
-class FitReport:
-    """What ``fit_brdf_command`` did: the fit and the files it wrote."""
-
-    fit: BrdfFit
-    csv_path: Path
-    yaml_path: Path
-    plot_path: Path
-
-    def table(self) -> str:
-        """Plain-text summary: parameters with 1-sigma uncertainties, metrics, files."""
-        fit = self.fit
-        lines = [
-            f"BRDF fit: {fit.model} to {self.csv_path} "
-            f"({fit.n_measurements} measurements, channels: {', '.join(fit.channel_names)})",
-            f"{'parameter':<22}{'value':>14}{'1-sigma':>14}",
-        ]
-        for name, value, std in zip(fit.names, fit.values, fit.std, strict=True):
-            lines.append(f"{name:<22}{value:>14.6g}{std:>14.3g}")
-        m = fit.metrics
-        lines += [
-            f"MSE {m.mse_sr2:.4g} sr^-2, PSNR {m.psnr_db:.2f} dB (peak {m.peak_per_sr:.4g} "
-            f"sr^-1), angular error {m.angular_error_deg:.3f} deg ({m.angular_error_kind})",
-            f"largest directional albedo {fit.max_albedo:.4f} (theta_i = "
-            f"{fit.max_albedo_theta_deg:g} deg)",
-        ]
-        if fit.at_bounds:
-            lines.append("at a bound (uncertainty not meaningful): " + ", ".join(fit.at_bounds))
-        if not fit.success:
-            lines.append(f"optimizer did not converge: {fit.message}")
-        lines += [f"wrote {self.yaml_path}", f"wrote {self.plot_path}"]
-        return "\n".join(lines)
-
-
-def fit_brdf_command(
-    csv_path: str | Path,
-    model: str,
-    out_dir: str | Path,
-    masking: str = "schlick",
-) -> FitReport:
-    """``satsight fit-brdf CSV --model M --out DIR``: read the table, fit the model, write
-    ``DIR/<csv stem>_<model>.yaml`` (``material_entry``) and
-    ``DIR/<csv stem>_<model>_plane.png`` (measured and fitted BRDF in the plane of
-    incidence), and return the report (prints nothing)."""
-    from satsight.brdf.plot import plot_plane_of_incidence
-
-    csv_path = Path(csv_path)
-    measurements = read_brdf_csv(csv_path)
-    fit = fit_brdf(measurements, model, masking=masking)
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise SatsightError(f"cannot create the output folder {out}: {err}") from None
-    stem = f"{csv_path.stem}_{model}"
-    yaml_path = write_fit_yaml(fit, out / f"{stem}.yaml")
-    plot_path = plot_plane_of_incidence(
-        measurements,
-        fit.evaluate,
-        out / f"{stem}_plane.png",
-        title=f"{csv_path.name}: {model}, PSNR {fit.metrics.psnr_db:.1f} dB",
-    )
-    return FitReport(fit=fit, csv_path=csv_path, yaml_path=yaml_path, plot_path=plot_path)

@@ -36,7 +36,7 @@ over viewing directions in proportion to the facet's projected area (cos theta_o
 pixels it covers). That is the error the ablation's image MSE measures for the Sun term.
 
 ``PhongModelFits`` holds both fits, as ``PhongCoefficients`` for ``Material.phong`` and
-with the fit metrics (``brdf.fit.FitMetrics`` on the grid, unweighted: PSNR against the
+with the fit metrics (``brdf.metrics.FitMetrics`` on the grid, unweighted: PSNR against the
 largest GGX value, spectral angle), ``weighted_relative_rms`` =
 sqrt(sum W df^2 / sum W f^2), the relative radiance error in the weighting above, and
 ``weighted_spectral_angle_deg``: the angle between the GGX and fitted RGB vectors averaged

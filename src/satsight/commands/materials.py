@@ -94,7 +94,7 @@ def fit_brdf(measurements: Path, model: str, out_dir: Path) -> None:
     """Fit a reflection model to the measured BRDF samples in MEASUREMENTS (CSV: theta_i_deg,
     phi_i_deg, theta_o_deg, phi_o_deg, wavelength_nm or band, brdf_per_sr); print the
     parameters with their uncertainties, MSE, PSNR and angular error."""
-    from satsight.brdf.fit import fit_brdf_command
+    from satsight.brdf.fit_files import fit_brdf_command
 
     with console.status(f"fitting {model} to {measurements}"):
         report = fit_brdf_command(measurements, model, out_dir)
