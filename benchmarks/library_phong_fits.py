@@ -47,19 +47,8 @@ def fit_library(band_nm: tuple[float, float]) -> list[dict]:
             "seconds": round(seconds, 3),
         }
         for model, fit in result.fits.items():
-            c = fit.coefficients
-            m = fit.fit.metrics
             record[model] = {
-                "kd_rgb": list(c.kd_rgb),
-                "ks_rgb": list(c.ks_rgb),
-                "g": c.gloss_exponent_g,
-                "a": c.fresnel_exponent_a,
-                "b": c.lobe_decay_b,
-                "c": c.diffuse_exponent_c,
-                "psnr_db": m.psnr_db,
-                "spectral_angle_deg": m.spectral_angle_deg,
-                "weighted_relative_rms": fit.weighted_relative_rms,
-                "weighted_spectral_angle_deg": fit.weighted_spectral_angle_deg,
+                **fit.summary(),
                 "max_directional_albedo": fit.fit.max_albedo,
                 "at_bounds": list(fit.fit.at_bounds),
             }

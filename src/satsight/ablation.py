@@ -143,21 +143,11 @@ def fit_rows(fits: dict) -> list[dict]:
     rows = []
     for name, result in fits.items():
         for model, fit in result.fits.items():
-            c = fit.coefficients
             rows.append(
                 {
                     "material": name,
                     "model": model,
-                    "kd_rgb": list(c.kd_rgb),
-                    "ks_rgb": list(c.ks_rgb),
-                    "g": c.gloss_exponent_g,
-                    "a": c.fresnel_exponent_a,
-                    "b": c.lobe_decay_b,
-                    "c": c.diffuse_exponent_c,
-                    "psnr_db": fit.fit.metrics.psnr_db,
-                    "spectral_angle_deg": fit.fit.metrics.spectral_angle_deg,
-                    "weighted_relative_rms": fit.weighted_relative_rms,
-                    "weighted_spectral_angle_deg": fit.weighted_spectral_angle_deg,
+                    **fit.summary(),
                     "geometries": result.n_geometries,
                 }
             )

@@ -178,6 +178,22 @@ class ModelFit:
     weighted_relative_rms: float
     weighted_spectral_angle_deg: float
 
+    def summary(self) -> dict:
+        """The coefficients (kd, ks per channel, g, a, b, c) and the fit's metrics, JSON-ready."""
+        c, m = self.coefficients, self.fit.metrics
+        return {
+            "kd_rgb": list(c.kd_rgb),
+            "ks_rgb": list(c.ks_rgb),
+            "g": c.gloss_exponent_g,
+            "a": c.fresnel_exponent_a,
+            "b": c.lobe_decay_b,
+            "c": c.diffuse_exponent_c,
+            "psnr_db": m.psnr_db,
+            "spectral_angle_deg": m.spectral_angle_deg,
+            "weighted_relative_rms": self.weighted_relative_rms,
+            "weighted_spectral_angle_deg": self.weighted_spectral_angle_deg,
+        }
+
 
 @dataclass(frozen=True)
 class PhongModelFits:
