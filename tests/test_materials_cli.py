@@ -78,3 +78,29 @@ def test_fit_brdf_names_the_bad_line(tmp_path: Path) -> None:
     assert "line 3" in result.stderr and "theta_o_deg" in result.stderr
     assert "Traceback" not in result.stderr
     assert not (tmp_path / "fit").exists()
+
+
+def test_piped_table_keeps_every_name_and_number_whole(tmp_path: Path, monkeypatch) -> None:
+    """Not on a terminal (CliRunner's output is a buffer, 80 columns by default): every row
+    comes out whole, tab-separated, with the same numbers as the JSON."""
+    from click.testing import CliRunner
+
+    from satsight.cli import cli
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(cli, ["materials", "--out", "m"])
+    assert result.exit_code == 0, result.output
+    assert "…" not in result.stdout
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith("# material library: in-band reflectance over 450-900 nm")
+    assert lines[1].split("\t") == ["material", "category", "r", "g", "b", "M", "R", "IOR",
+                                    "spectrum"]  # fmt: skip
+    document = json.loads((tmp_path / "m" / "materials.json").read_text(encoding="utf-8"))
+    rows = {line.split("\t")[0]: line.split("\t") for line in lines[2:] if line}
+    assert "radiator_osr_ceria_glass" in rows  # the longest name
+    for entry in document["materials"]:
+        r, g, b = entry["rgb"]
+        assert rows[entry["name"]][1:6] == [
+            entry["category"], f"{r:.3f}", f"{g:.3f}", f"{b:.3f}", f"{entry['metallic']:.2f}"
+        ]  # fmt: skip

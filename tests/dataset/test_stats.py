@@ -193,3 +193,35 @@ def test_stats_memory_does_not_grow_with_the_frame_count(large_labels_only: Path
         f"peak {peak / 1e6:.1f} MB for {LARGE_FRAME_COUNT} frames, whose records take "
         f"{records_bytes / 1e6:.0f} MB held at once (a {journal_bytes / 1e6:.0f} MB journal)"
     )
+
+
+def test_piped_tables_keep_every_name_and_number_whole(
+    dataset: Path, tmp_path: Path, monkeypatch
+) -> None:
+    """Not on a terminal (CliRunner's output is a buffer, 80 columns by default): both tables
+    come out whole, tab-separated, with the numbers of stats.json."""
+    from click.testing import CliRunner
+
+    from satsight.cli import cli
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    result = CliRunner().invoke(cli, ["stats", str(dataset), "--out", str(tmp_path / "s")])
+    assert result.exit_code == 0, result.output
+    assert "…" not in result.stdout
+    counts_text, spread_text = result.stdout.strip().split("\n\n")
+    numbers = json.loads((tmp_path / "s" / "stats.json").read_text(encoding="utf-8"))
+    counts = counts_text.splitlines()
+    assert counts[0] == f"# {FRAME_COUNT} frames of {numbers['dataset']}"
+    assert counts[1].split("\t") == ["group", "value", "frames"]
+    assert {tuple(line.split("\t")) for line in counts[2:]} == {
+        (group.replace("_", " "), value, str(count))
+        for group, values in numbers["counts"].items()
+        for value, count in values.items()
+    }
+    spread = spread_text.splitlines()
+    assert spread[:2] == ["# distributions", "quantity\tunit\tmin\tmedian\tmax\twithout"]
+    rows = {line.split("\t")[0]: line.split("\t")[1:] for line in spread[2:]}
+    assert set(rows) == set(DISTRIBUTIONS)
+    for name, hist in numbers["histograms"].items():
+        whole = ["-" if hist[k] is None else f"{hist[k]:.4g}" for k in ("min", "median", "max")]
+        assert rows[name] == [hist["unit"], *whole, str(hist["missing"])], name

@@ -6,10 +6,10 @@ import sys
 from pathlib import Path
 
 import click
-from rich.console import Console
 from rich.progress import Progress
 
 from satsight.commands.shell import Interrupted, console, example_scenario_path, progress_bar
+from satsight.commands.tables import print_tables, prints_tables, stdout_console
 from satsight.errors import SatsightError
 
 
@@ -173,6 +173,7 @@ def merge(shards: tuple[Path, ...], out_dir: Path, move: bool) -> None:
     console.print(f"merged {len(shards)} shards into {out_dir} ({count} frames)")
 
 
+@prints_tables
 @click.command()
 @click.argument("dataset", type=click.Path(path_type=Path))
 @click.option(
@@ -199,16 +200,17 @@ def validate(dataset: Path, hashes: bool, allow_incomplete: bool) -> None:
             allow_incomplete=allow_incomplete,
             on_frame_done=lambda done, total: progress.update(task, completed=done, total=total),
         )
-    out = Console(soft_wrap=True, highlight=False)
+    out = stdout_console()
     for problem in report.findings.problems:
         out.print(str(problem), markup=False)
     if (more := omitted_line(report)) is not None:
         out.print(more, markup=False)
-    Console().print(summary_table(report))
+    print_tables([summary_table(report)])
     if not report.ok:
         sys.exit(1)
 
 
+@prints_tables
 @click.command()
 @click.argument("dataset", type=click.Path(path_type=Path))
 @click.option(
@@ -228,8 +230,7 @@ def stats(dataset: Path, out_dir: Path | None) -> None:
     opened = open_dataset(dataset)
     out = output_folder(dataset, out_dir or Path("out/stats") / dataset.resolve().name)
     numbers = dataset_stats(opened)
-    for table in stats_tables(numbers):
-        Console().print(table)
+    print_tables(stats_tables(numbers))
     json_path, png_path = write_stats(numbers, out)
     console.print(f"wrote {json_path} and {png_path}")
 
@@ -267,6 +268,21 @@ def stats(dataset: Path, out_dir: Path | None) -> None:
     show_default=True,
     help="SPEED+ image domain folder",
 )
+@click.option(
+    "--image",
+    "image_mode",
+    type=click.Choice(["dn16", "raw16", "linear8", "preview"]),
+    default="dn16",
+    show_default=True,
+    help="dn16: 16-bit DN above the bias; raw16: DN as read out; linear8: 8-bit, linear "
+    "in DN with one gain (--white-dn); preview: the 8-bit display stretch (not linear)",
+)
+@click.option(
+    "--white-dn",
+    type=float,
+    default=None,
+    help="linear8: DN above the bias that reads 255 [default: the detector's saturation]",
+)
 @click.option("--overwrite", is_flag=True, help="replace an earlier export in --out")
 def export(
     dataset: Path,
@@ -276,12 +292,19 @@ def export(
     seed: int,
     crop: bool,
     domain: str,
+    image_mode: str,
+    white_dn: float | None,
     overwrite: bool,
 ) -> None:
-    """Export DATASET to the BOP or SPEED+ format with a seeded train/val/test split."""
+    """Export DATASET to the BOP or SPEED+ format with a seeded train/val/test split.
+
+    The images are the detector's DN, linearly scaled (--image); satsight_export.json
+    in the export says how to turn them back into DN."""
     from satsight.dataset.export import export_dataset
     from satsight.dataset.export.splits import SplitRule, parse_split
 
     rule = SplitRule(parse_split(split_text), seed)
-    summary = export_dataset(dataset, out_dir, fmt, rule, crop, overwrite, domain)
+    summary = export_dataset(
+        dataset, out_dir, fmt, rule, crop, overwrite, domain, image_mode, white_dn
+    )
     console.print(summary.line(), highlight=False)

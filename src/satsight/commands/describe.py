@@ -8,14 +8,15 @@ from pathlib import Path
 
 import click
 import numpy as np
-from rich.console import Console
 
 from satsight.commands.shell import console, example_scenario_path, report_folder_option
+from satsight.commands.tables import print_tables, prints_tables
 
 # Rows of the printed plan shown in full; longer plans show their head and tail.
 _PLAN_ROWS_SHOWN = 40
 
 
+@prints_tables
 @click.command()
 @click.argument("config", type=click.Path(path_type=Path))
 @report_folder_option("out/plan", "plan.csv and the plots")
@@ -47,7 +48,7 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
             table.add_row(*(["..."] * len(rows[0])))
         else:
             table.add_row(*(str(value) for value in rows[i].values()))
-    Console().print(table)
+    print_tables([table])
     out_dir.mkdir(parents=True, exist_ok=True)
     csv_path = out_dir / "plan.csv"
     write_plan_csv(track, csv_path)
@@ -64,6 +65,7 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
     console.print("wrote " + ", ".join(str(p) for p in written))
 
 
+@prints_tables
 @click.command()
 @click.argument("config", type=click.Path(path_type=Path), required=False)
 @report_folder_option("out/camera", "camera.json and system_mtf.png")
@@ -102,7 +104,7 @@ def camera(config: Path | None, out_dir: Path) -> None:
     ]  # fmt: skip
     for name, value in rows:
         table.add_row(name, value)
-    Console().print(table)
+    print_tables([table])
     out_dir.mkdir(parents=True, exist_ok=True)
     json_path = out_dir / "camera.json"
     json_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
@@ -147,7 +149,7 @@ def satellite(satellite_class: str, seed: int, out_path: Path) -> None:
     default=96,
     show_default=True,
     type=click.IntRange(min=16, max=1024),
-    help="side of the small render of each frame (the target fills 80 %% of it)",
+    help="side of the small render of each frame (the target fills 80 % of it)",
 )
 @click.option(
     "--spp",

@@ -7,10 +7,10 @@ import json
 from pathlib import Path
 
 import click
-from rich.console import Console
 from rich.table import Table
 
 from satsight.commands.shell import console, report_folder_option
+from satsight.commands.tables import print_tables, prints_tables
 from satsight.errors import SatsightError
 
 
@@ -25,6 +25,7 @@ def _band_nm(text: str) -> tuple[float, float]:
     return lo, hi
 
 
+@prints_tables
 @click.command()
 @click.option(
     "--band",
@@ -70,7 +71,7 @@ def materials(band_text: str, qe: str, out_dir: Path) -> None:
             f"{row['ior']:.3g}",
             row["spectrum"],
         )
-    Console().print(table)
+    print_tables([table])
     out_dir.mkdir(parents=True, exist_ok=True)
     json_path = out_dir / "materials.json"
     document = {"band_nm": list(band), "quantum_efficiency": qe, "materials": rows}

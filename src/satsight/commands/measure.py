@@ -6,12 +6,13 @@ import json
 from pathlib import Path
 
 import click
-from rich.console import Console
 
 from satsight.commands.shell import console, progress_bar
+from satsight.commands.tables import print_tables, prints_tables
 from satsight.errors import SatsightError
 
 
+@prints_tables
 @click.command()
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option(
@@ -135,7 +136,7 @@ def ablate(
             f"{row['psnr_db']:.2f}",
             f"{row['mean_angular_error_deg']:.3f}",
         )
-    Console().print(table)
+    print_tables([table])
     console.print(
         "improved_phong, phong: coefficients fitted to each part's GGX material; "
         "*_mapped: derived from the GGX parameters by the heuristic mapping"
