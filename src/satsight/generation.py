@@ -45,7 +45,8 @@ from satsight.dataset.manifest import (
     write_manifest,
 )
 from satsight.dataset.preview import PreviewStretch
-from satsight.dataset.reader import COMPLETE_NAME, MANIFEST_NAME, is_dataset, read_json
+from satsight.dataset.reader import COMPLETE_NAME, MANIFEST_NAME, read_json
+from satsight.dataset.staging import check_dataset_folder
 from satsight.errors import SatsightError
 from satsight.pipeline import FrameEngine, RenderedFrame
 from satsight.scene.obj_export import write_obj
@@ -269,37 +270,13 @@ def prepare_folder(
     manifest) or replaced (``overwrite``); anything else is refused before any writing.
     """
     out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise SatsightError(f"output path {out_dir} exists and is not a folder")
-    resolved = out_dir.resolve()
-    if resolved == Path(resolved.anchor) or Path.cwd().is_relative_to(resolved):
-        raise SatsightError(
-            f"output folder {out_dir} is the current folder or one of its parents; "
-            "choose a folder of its own"
-        )
-    occupied = out_dir.is_dir() and any(out_dir.iterdir())
-    if occupied:
-        if not is_dataset(out_dir):
-            raise SatsightError(
-                f"output folder {out_dir} is not empty and holds no satsight dataset "
-                "(--overwrite replaces only satsight datasets); choose an empty or new folder"
-            )
+    check_dataset_folder(out_dir, overwrite, resume)  # again: the folder may have changed
+    if out_dir.is_dir() and any(out_dir.iterdir()):  # a dataset (checked above)
         if overwrite:
             shutil.rmtree(out_dir)
-        elif resume:
+        else:  # resume
             _check_same_dataset(out_dir, manifest, scenario)
             return (out_dir / COMPLETE_NAME).is_file()
-        elif (out_dir / COMPLETE_NAME).is_file():
-            raise SatsightError(
-                f"output folder {out_dir} holds a complete dataset; pass --overwrite to "
-                "replace it, or choose another folder"
-            )
-        else:
-            committed = len(journal_frames(out_dir))
-            raise SatsightError(
-                f"output folder {out_dir} holds an incomplete dataset ({committed} frames "
-                "committed); pass --resume to finish it or --overwrite to replace it"
-            )
     out_dir.mkdir(parents=True, exist_ok=True)
     write_manifest(out_dir, manifest)
     return False
@@ -433,6 +410,7 @@ def generate_dataset(
     started = time.perf_counter()
     out_dir = Path(out_dir)
     stop = stop or StopFlag()
+    check_dataset_folder(out_dir, overwrite, resume)  # before the mesh, renderer and stars
     engine = FrameEngine(scenario)
     engine.load_star_catalogue()  # fails here, before anything is written
     manifest = dataset_manifest(engine, shard)

@@ -24,14 +24,18 @@ def _generate(
     outputs: str | None = None,
     crop_px: int | None = None,
 ) -> None:
+    from satsight.dataset.staging import check_dataset_folder
+
+    if overwrite and resume:
+        raise SatsightError("give --overwrite or --resume, not both")
+    check_dataset_folder(out_dir, overwrite, resume)  # at once, before the scenario loads
+
     import shlex
 
     from satsight.config.outputs import parse_outputs_option
     from satsight.config.scenario import load_scenario, parse_scenario
     from satsight.generation import Shard, StopFlag, generate_dataset, stop_on_sigint
 
-    if overwrite and resume:
-        raise SatsightError("give --overwrite or --resume, not both")
     scenario = load_scenario(config_path)
     if outputs is not None or crop_px is not None:
         data = scenario.model_dump(mode="json")

@@ -22,6 +22,52 @@ def check_output_folder(out_dir: Path, overwrite: bool) -> None:
         )
 
 
+def check_dataset_folder(out_dir: Path, overwrite: bool, resume: bool) -> None:
+    """Refuse, before the scenario's heavy parts load, an output folder a dataset run
+    (generate, demo) cannot use: a file, the current folder or one of its parents, a place
+    that cannot be created or written in, a non-empty folder that holds no satsight dataset,
+    or a dataset without ``overwrite`` or ``resume``. Whether a dataset to resume holds the
+    same scenario is checked later, against the run's manifest."""
+    from satsight.dataset.journal import journal_frames
+    from satsight.dataset.reader import COMPLETE_NAME, is_dataset
+
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise SatsightError(f"output path {out_dir} exists and is not a folder")
+    resolved = out_dir.resolve()
+    if resolved == Path(resolved.anchor) or Path.cwd().is_relative_to(resolved):
+        raise SatsightError(
+            f"output folder {out_dir} is the current folder or one of its parents; "
+            "choose a folder of its own"
+        )
+    existing = next(p for p in (resolved, *resolved.parents) if p.exists())
+    if not existing.is_dir():
+        raise SatsightError(f"cannot create the output folder {out_dir}: {existing} is a file")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise SatsightError(
+            f"cannot write in {existing} (permission denied); choose another output folder"
+        )
+    if not (out_dir.is_dir() and any(out_dir.iterdir())):
+        return
+    if not is_dataset(out_dir):
+        raise SatsightError(
+            f"output folder {out_dir} is not empty and holds no satsight dataset "
+            "(--overwrite replaces only satsight datasets); choose an empty or new folder"
+        )
+    if overwrite or resume:
+        return
+    if (out_dir / COMPLETE_NAME).is_file():
+        raise SatsightError(
+            f"output folder {out_dir} holds a complete dataset; pass --overwrite to "
+            "replace it, or choose another folder"
+        )
+    committed = len(journal_frames(out_dir))
+    raise SatsightError(
+        f"output folder {out_dir} holds an incomplete dataset ({committed} frames "
+        "committed); pass --resume to finish it or --overwrite to replace it"
+    )
+
+
 @contextmanager
 def staged_folder(out_dir: Path, overwrite: bool = False) -> Iterator[Path]:
     """Yield a temporary folder beside ``out_dir``; on success it replaces ``out_dir``.
