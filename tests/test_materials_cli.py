@@ -104,3 +104,34 @@ def test_piped_table_keeps_every_name_and_number_whole(tmp_path: Path, monkeypat
         assert rows[entry["name"]][1:6] == [
             entry["category"], f"{r:.3f}", f"{g:.3f}", f"{b:.3f}", f"{entry['metallic']:.2f}"
         ]  # fmt: skip
+
+
+def test_shipped_brdf_example_is_packaged_and_fits(tmp_path: Path) -> None:
+    """The README's fit-brdf example: in the installed package, named by the wheel's
+    package-data, and fitted by the command with the parameters its header gives."""
+    import fnmatch
+    import tomllib
+    from importlib import resources
+
+    import yaml
+    from click.testing import CliRunner
+
+    from satsight.cli import cli
+
+    shipped = resources.files("satsight") / "examples" / "brdf_synthetic_ggx_rgb.csv"
+    assert shipped.is_file()
+    pyproject = Path(__file__).parents[1] / "pyproject.toml"
+    globs = tomllib.loads(pyproject.read_text(encoding="utf-8"))["tool"]["setuptools"]
+    assert any(
+        fnmatch.fnmatch("examples/brdf_synthetic_ggx_rgb.csv", pattern)
+        for pattern in globs["package-data"]["satsight"]
+    )
+    result = CliRunner().invoke(
+        cli, ["fit-brdf", str(shipped), "--model", "ggx", "--out", str(tmp_path / "fit")]
+    )
+    assert result.exit_code == 0, result.output
+    assert "BRDF fit: ggx" in result.stdout and "585 measurements" in result.stdout
+    fitted = yaml.safe_load((tmp_path / "fit" / "brdf_synthetic_ggx_rgb_ggx.yaml").read_text())
+    # The header's generating parameters: base colour, metallic, roughness, IOR.
+    assert fitted["parameters"]["base_color_rgb"] == pytest.approx([0.85, 0.80, 0.70], abs=0.02)
+    assert fitted["parameters"]["roughness"] == pytest.approx(0.35, abs=0.01)
