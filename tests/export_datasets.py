@@ -30,6 +30,8 @@ PITCH_M = 10e-6
 SIZE_PX = (64, 48)
 #: Camera-frame position of the box centre per frame (metres): the last one is 50 km away.
 CENTERS_CAM_M = [(0.3, -0.2, 4000.0), (-0.4, 0.1, 5000.0), (0.0, 0.5, 4500.0), (0.1, 0.0, 50e3)]
+#: Box centres that put the box across the image border (right, left and top, bottom).
+TRUNCATED_CENTERS_CAM_M = [(1.5, 0.0, 4000.0), (-1.4, -0.7, 4500.0), (0.0, 1.0, 4200.0)]
 DETECTOR = {"bias_dn": 1000.0, "full_well_e": 350000.0, "conversion_gain_e_per_dn": 5.833,
             "adc_bits": 16}  # fmt: skip
 CROP_SIDE_PX = 32
@@ -61,10 +63,10 @@ def box_mesh() -> TargetMesh:
     )
 
 
-def box_pose(frame: int) -> tuple[np.ndarray, np.ndarray]:
+def box_pose(frame: int, centers_cam_m=CENTERS_CAM_M) -> tuple[np.ndarray, np.ndarray]:
     """(R_cam_from_body, t_cam_from_body_m) of a frame: a fixed random turn per frame."""
     R = Rotation.random(random_state=100 + frame).as_matrix()
-    t = np.array(CENTERS_CAM_M[frame]) - R @ BOX_CENTER_M
+    t = np.array(centers_cam_m[frame]) - R @ BOX_CENTER_M
     return R, t
 
 
@@ -132,8 +134,10 @@ def write_box_dataset(
     crop: bool = False,
     full_frame: bool = True,
     complete: bool = True,
+    centers_cam_m=CENTERS_CAM_M,
 ) -> Path:
-    """Write the box dataset (4 frames) into ``root``; returns root."""
+    """Write the box dataset (one frame per box centre, 4 by default) into ``root``;
+    returns root."""
     root.mkdir(parents=True)
     (root / "model").mkdir()
     mesh = box_mesh()
@@ -142,7 +146,7 @@ def write_box_dataset(
     header = {
         "format": "satsight-dataset",
         "version": 3,
-        "frame_count": len(CENTERS_CAM_M),
+        "frame_count": len(centers_cam_m),
         "scenario": "box-fixture",
         "camera": {
             "focal_length_m": FOCAL_M,
@@ -158,8 +162,8 @@ def write_box_dataset(
     }
     (root / "manifest.json").write_text(json.dumps(header, indent=1))
     records = []
-    for index in range(len(CENTERS_CAM_M)):
-        R, t = box_pose(index)
+    for index in range(len(centers_cam_m)):
+        R, t = box_pose(index, centers_cam_m)
         depth = ray_cast_box(R, t, K, SIZE_PX)
         arrays = _frame_arrays(depth)
         bbox = mask_bbox_xyxy_px(depth > 0)

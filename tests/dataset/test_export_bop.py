@@ -18,7 +18,10 @@ from scipy.spatial.distance import pdist
 
 from cli_runner import run_satsight
 from export_datasets import (
+    CENTERS_CAM_M,
     CROP_SIDE_PX,
+    TRUNCATED_CENTERS_CAM_M,
+    box_K,
     box_mesh,
     box_pose,
     ray_cast_box,
@@ -55,7 +58,8 @@ def read_bop_images(export: Path) -> dict[int, dict]:
     """frame (image id) -> {split, K, depth_scale, R, t_mm, info, gray, mask, mask_visib,
     depth_mm} over every split's scene 000000."""
     images = {}
-    for split_dir in sorted(p for p in export.iterdir() if p.is_dir() and p.name != "models"):
+    splits = ("train", "val", "test")
+    for split_dir in sorted(p for p in export.iterdir() if p.is_dir() and p.name in splits):
         scene = split_dir / "000000"
         cameras = load_json(scene / "scene_camera.json")
         gts = load_json(scene / "scene_gt.json")
@@ -82,9 +86,22 @@ def read_bop_images(export: Path) -> dict[int, dict]:
 
 
 def project(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """BOP's P = K [R | t]: s [u, v, 1]^T = P [x, y, z, 1]^T."""
+    """BOP's P = K [R | t]: s [u, v, 1]^T = P [x, y, z, 1]^T, in bop_toolkit's pixel
+    coordinates (the OpenGL window's: pixel (i, j) spans [i, i + 1) x [j, j + 1))."""
     p = (K @ (points @ R.T + t).T).T
     return p[:, :2] / p[:, 2:3]
+
+
+def pixel_of(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(cols, rows) of the pixels holding BOP pixel positions uv (N, 2)."""
+    cols, rows = np.floor(uv).astype(int).T
+    return cols, rows
+
+
+#: satsight pixel position + this = the same point in bop_toolkit's pixel coordinates.
+BOP_SHIFT_PX = 0.5
+#: cam_K - this = satsight's K.
+BOP_K_SHIFT = np.array([[0, 0, BOP_SHIFT_PX], [0, 0, BOP_SHIFT_PX], [0, 0, 0]])
 
 
 # --- fixtures -------------------------------------------------------------------------------
@@ -120,8 +137,14 @@ def test_json_files_parse_and_have_exactly_the_bop_keys(bop: Path) -> None:
             assert len(entries[0]["cam_R_m2c"]) == 9 and len(entries[0]["cam_t_m2c"]) == 3
         for entries in load_json(scene / "scene_gt_info.json").values():
             assert len(entries) == 1 and set(entries[0]) == GT_INFO_KEYS
-    for target in load_json(bop / "test_targets_bop19.json"):
+    targets19 = load_json(bop / "test_targets_bop19.json")
+    for target in targets19:
         assert set(target) == TARGET_KEYS
+    targets24 = load_json(bop / "test_targets_bop24.json")
+    assert targets24 == [{"im_id": t["im_id"], "scene_id": 0} for t in targets19]
+    for folder in ("models", "models_eval"):  # BOP's error functions read models_eval/
+        assert (bop / folder / "obj_000001.ply").is_file()
+        assert load_json(bop / folder / "models_info.json") == info
 
 
 def test_json_layout_is_bop_toolkits(bop: Path) -> None:
@@ -151,30 +174,57 @@ def test_model_points_reproject_into_mask_visib(bop: Path, labels: dict) -> None
     assert len(images) == len(labels["frames"])
     for frame in labels["frames"]:
         im = images[frame["frame_index"]]
-        # The label's keypoints, through the BOP pose, land on satsight's keypoints_px.
+        # The label's keypoints, through the BOP pose, land on satsight's keypoints_px,
+        # half a pixel on in the toolkit's pixel coordinates.
         uv = project(im["K"], im["R"], im["t_mm"], keypoints_mm)
-        np.testing.assert_allclose(uv, frame["keypoints_px"], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(uv - BOP_SHIFT_PX, frame["keypoints_px"], rtol=0, atol=1e-6)
         mask = im["mask_visib"]
         assert np.array_equal(mask, im["mask"])  # one target, hidden only by itself
         assert mask.sum() == im["info"]["px_count_visib"] == frame["object_pixel_count"]
         if mask.sum() < 100:
             continue  # the 50 km frame: a few pixels, checked by its depth
         uv = project(im["K"], im["R"], im["t_mm"], points_mm)
-        cols, rows = np.rint(uv).astype(int).T  # pixel (0, 0) is the top-left pixel's centre
+        cols, rows = pixel_of(uv)
         inside = (cols >= 0) & (cols < mask.shape[1]) & (rows >= 0) & (rows < mask.shape[0])
         hits = np.zeros(len(uv), bool)
         hits[inside] = mask[rows[inside], cols[inside]]
         assert hits.mean() > 0.97, hits.mean()
 
 
-def test_bbox_visib_is_the_mask_box_in_bop_toolkit_convention(bop: Path) -> None:
-    for im in read_bop_images(bop).values():
-        rows, cols = np.nonzero(im["mask_visib"])
-        box = [cols.min(), rows.min(), cols.max() - cols.min(), rows.max() - rows.min()]
-        assert im["info"]["bbox_visib"] == im["info"]["bbox_obj"] == [int(v) for v in box]
-        assert im["info"]["px_count_all"] == im["info"]["px_count_visib"]
-        assert im["info"]["px_count_valid"] == im["mask"].sum()
-        assert im["info"]["visib_fract"] == 1.0
+def calc_box(mask: np.ndarray, x_offset: int = 0, y_offset: int = 0) -> list[int]:
+    """bop_toolkit's calc_2d_bbox of a mask's pixels: [x, y, w, h], w = x_max - x_min."""
+    rows, cols = np.nonzero(mask)
+    rows, cols = rows - y_offset, cols - x_offset
+    return [int(v) for v in (cols.min(), rows.min(), np.ptp(cols), np.ptp(rows))]
+
+
+@pytest.mark.parametrize("centers", ["inside", "truncated"])
+def test_gt_info_counts_the_whole_silhouette_as_calc_gt_info_does(
+    bop: Path, tmp_path: Path, centers: str
+) -> None:
+    """The oracle is calc_gt_info.py's recipe with an exact ray caster: the model on a
+    canvas three times the image, the image in its middle (cx + W, cy + H)."""
+    centers_cam_m = CENTERS_CAM_M
+    if centers == "truncated":
+        centers_cam_m = TRUNCATED_CENTERS_CAM_M
+        dataset = write_box_dataset(tmp_path / "d", centers_cam_m=centers_cam_m)
+        bop = tmp_path / "bop"
+        export_dataset(dataset, bop, "bop", RULE)
+    truncated = 0
+    for im_id, im in read_bop_images(bop).items():
+        info = im["info"]
+        assert info["bbox_visib"] == calc_box(im["mask_visib"])
+        assert info["px_count_valid"] == im["mask"].sum()
+        R, t = box_pose(im_id, centers_cam_m)
+        height, width = im["mask"].shape
+        K_large = box_K() + np.array([[0, 0, width], [0, 0, height], [0, 0, 0]])
+        large = ray_cast_box(R, t, K_large, (3 * width, 3 * height)) > 0
+        assert np.array_equal(large[height : 2 * height, width : 2 * width], im["mask"])
+        assert info["px_count_all"] == large.sum()
+        assert info["bbox_obj"] == calc_box(large, width, height)
+        assert info["visib_fract"] == pytest.approx(im["mask"].sum() / large.sum(), rel=1e-12)
+        truncated += info["px_count_all"] > info["px_count_visib"]
+    assert truncated == (0 if centers == "inside" else len(centers_cam_m))
 
 
 def test_depth_recovers_metres_within_the_quantum_at_50_km(bop: Path, labels: dict) -> None:
@@ -182,7 +232,7 @@ def test_depth_recovers_metres_within_the_quantum_at_50_km(bop: Path, labels: di
     for frame in labels["frames"]:
         im = images[frame["frame_index"]]
         R, t = box_pose(frame["frame_index"])
-        truth_m = ray_cast_box(R, t, im["K"], (im["mask"].shape[1], im["mask"].shape[0]))
+        truth_m = ray_cast_box(R, t, im["K"] - BOP_K_SHIFT, (im["mask"].shape[1], im["mask"].shape[0]))
         scale = im["camera"]["depth_scale"]
         assert np.array_equal(im["depth_mm"] > 0, truth_m > 0)
         assert np.array_equal(truth_m > 0, im["mask"])
@@ -234,10 +284,10 @@ def test_crop_export_uses_the_crop_intrinsics_and_images(box: Path, labels: dict
     for frame in labels["frames"]:
         im = images[frame["frame_index"]]
         crop = frame["crop"]
-        assert np.array_equal(im["K"], np.array(crop["K"]))
+        assert np.array_equal(im["K"], np.array(crop["K"]) + BOP_K_SHIFT)
         assert im["gray"].shape == im["mask"].shape == (CROP_SIDE_PX, CROP_SIDE_PX)
         uv = project(im["K"], im["R"], im["t_mm"], keypoints_mm)
-        np.testing.assert_allclose(uv, crop["keypoints_px"], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(uv - BOP_SHIFT_PX, crop["keypoints_px"], rtol=0, atol=1e-6)
         x0, y0, x1, y1 = crop["box_xyxy_px"]
         truth = ray_cast_box(*box_pose(frame["frame_index"]), np.array(frame["K"]), (64, 48))
         assert np.array_equal(im["mask"], truth[y0:y1, x0:x1] > 0)
@@ -259,7 +309,7 @@ def test_crop_flag_without_crops_is_refused(tmp_path: Path) -> None:
     assert not (tmp_path / "out").exists()
 
 
-def test_lean_dataset_exports_stretched_dn_and_no_depth(tmp_path: Path) -> None:
+def test_lean_dataset_exports_dn_and_no_depth(tmp_path: Path) -> None:
     dataset = write_box_dataset(tmp_path / "d", keys=("dn_png16", "object_mask_png"))
     summary = export_dataset(dataset, tmp_path / "out", "bop", RULE)
     assert "no depth" in summary.line()
@@ -267,15 +317,35 @@ def test_lean_dataset_exports_stretched_dn_and_no_depth(tmp_path: Path) -> None:
         assert im["depth_mm"] is None and set(im["camera"]) == {"cam_K"}
         assert im["info"]["px_count_valid"] == 0
         dn = read_png(dataset / f"images/frame_{im_id:06d}.png")
-        assert np.array_equal(im["gray"], dn_preview_uint8(dn, 1000.0, 1000.0 + 350000 / 5.833))
+        assert np.array_equal(im["gray"], dn - np.uint16(1000))  # DN above the bias
     assert not list((tmp_path / "out").glob("*/000000/depth"))
+    notes = (tmp_path / "out" / "BOP_TOOLKIT.md").read_text()
+    assert "No depth was exported" in notes
+
+
+def test_preview_images_without_previews_stretch_the_dn(tmp_path: Path) -> None:
+    dataset = write_box_dataset(tmp_path / "d", keys=("dn_png16", "object_mask_png"))
+    export_dataset(dataset, tmp_path / "out", "bop", RULE, image="preview")
+    for im_id, im in read_bop_images(tmp_path / "out").items():
+        dn = read_png(dataset / f"images/frame_{im_id:06d}.png")
+        assert np.array_equal(im["gray"], dn_preview_uint8(dn, 1000.0, 1000.0 + 350000 / 5.833))
 
 
 def test_dataset_without_masks_is_refused_with_the_remedy(tmp_path: Path) -> None:
-    dataset = write_box_dataset(tmp_path / "d", keys=("preview_png8", "depth_exr"))
+    dataset = write_box_dataset(tmp_path / "d", keys=("dn_png16", "depth_exr"))
     with pytest.raises(SatsightError, match=r"object_mask_png \(output 'masks'\)"):
         export_dataset(dataset, tmp_path / "out", "bop", RULE)
     assert not (tmp_path / "out").exists()
+
+
+def test_dataset_with_previews_only_is_refused_with_both_remedies(tmp_path: Path) -> None:
+    dataset = write_box_dataset(tmp_path / "d", keys=("preview_png8", "object_mask_png"))
+    with pytest.raises(SatsightError, match=r"'dn' in outputs.files, or .* --image preview"):
+        export_dataset(dataset, tmp_path / "out", "bop", RULE)
+    assert not (tmp_path / "out").exists()
+    export_dataset(dataset, tmp_path / "out", "bop", RULE, image="preview")
+    gray = read_png(next((tmp_path / "out").glob("*/000000/gray/000000.png")))
+    assert np.array_equal(gray, read_png(dataset / "previews" / "frame_000000.png"))
 
 
 # --- the command line -----------------------------------------------------------------------
@@ -336,7 +406,11 @@ def test_overwrite_replaces_an_earlier_export_only(tmp_path: Path) -> None:
     out = tmp_path / "out"
     export_dataset(dataset, out, "bop", RULE)
     export_dataset(dataset, out, "bop", SplitRule((1.0, 0.0, 0.0)), overwrite=True)
-    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["models", "train"]
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == [
+        "models",
+        "models_eval",
+        "train",
+    ]
     other = tmp_path / "other"
     other.mkdir()
     (other / "keep.txt").write_text("mine")
@@ -365,7 +439,7 @@ def test_rendered_dataset_reprojects_into_its_masks(rendered: Path) -> None:
     for frame in labels["frames"]:
         im = images[frame["frame_index"]]
         uv = project(im["K"], im["R"], im["t_mm"], keypoints_mm)
-        np.testing.assert_allclose(uv, frame["keypoints_px"], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(uv - BOP_SHIFT_PX, frame["keypoints_px"], rtol=0, atol=1e-6)
         assert im["mask"].sum() == im["info"]["px_count_visib"] == frame["object_pixel_count"]
         scale = im["camera"]["depth_scale"]
         if frame["range_m"] > 40e3:
@@ -374,7 +448,7 @@ def test_rendered_dataset_reprojects_into_its_masks(rendered: Path) -> None:
             assert np.all(np.abs(depth_m - frame["range_m"]) < 20.0)  # the target's size
         elif im["mask"].sum() >= 100:
             uv = project(im["K"], im["R"], im["t_mm"], points_mm)
-            cols, rows = np.rint(uv).astype(int).T
+            cols, rows = pixel_of(uv)
             inside = (cols >= 0) & (cols < 96) & (rows >= 0) & (rows < 80)
             # Points inside the image (a truncated frame loses the rest): nearly all fall on
             # the mask; thin parts seen edge-on may miss every pixel centre.
@@ -392,7 +466,7 @@ def test_rendered_crops_export_with_their_intrinsics(rendered: Path) -> None:
         im, crop = images[frame["frame_index"]], frame["crop"]
         assert im["gray"].shape == im["mask"].shape == im["depth_mm"].shape == (48, 48)
         uv = project(im["K"], im["R"], im["t_mm"], keypoints_mm)
-        np.testing.assert_allclose(uv, crop["keypoints_px"], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(uv - BOP_SHIFT_PX, crop["keypoints_px"], rtol=0, atol=1e-6)
         assert im["mask"].sum() == im["info"]["px_count_visib"] == crop["object_pixel_count"]
         x0, y0, x1, y1 = crop["box_xyxy_px"]
         full = read_png(rendered / frame["files"]["object_mask_png"]) > 0
@@ -441,7 +515,7 @@ def test_export_memory_does_not_grow_with_the_frame_count(rendered: Path, tmp_pa
     records_bytes = held_records_bytes(dataset)
     out = tmp_path / "bop"
     tracemalloc.start()
-    summary = export_dataset(dataset, out, "bop", SplitRule((0.8, 0.1, 0.1)))
+    summary = export_dataset(dataset, out, "bop", SplitRule((0.8, 0.1, 0.1)), image="preview")
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     assert summary.split_sizes == {"train": 4000, "val": 500, "test": 500}

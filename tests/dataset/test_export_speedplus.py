@@ -111,7 +111,7 @@ def test_camera_json_has_the_speedplus_keys_and_the_half_pixel_origin(speedplus:
     assert camera["fx"] == 0.75 and camera["ppx"] == pytest.approx(10e-6, rel=1e-12)
 
 
-def test_labels_follow_the_split_and_name_existing_8_bit_images(
+def test_labels_follow_the_split_and_name_existing_images(
     speedplus: Path, frames: dict[int, dict]
 ) -> None:
     labels = read_labels(speedplus)
@@ -123,7 +123,7 @@ def test_labels_follow_the_split_and_name_existing_8_bit_images(
             q = np.array(entry["q_vbs2tango_true"])
             assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-12) and q[0] >= 0
             image = read_png(speedplus / "synthetic" / "images" / entry["filename"])
-            assert image.dtype == np.uint8 and image.shape == (SIZE_PX[1], SIZE_PX[0])
+            assert image.dtype == np.uint16 and image.shape == (SIZE_PX[1], SIZE_PX[0])
 
 
 def test_speedplus_projection_lands_on_satsight_pixels(
@@ -161,9 +161,9 @@ def test_label_files_are_laid_out_as_written_at_once(speedplus: Path, tmp_path: 
             assert text == json_text(json.loads(text)), name
 
 
-def test_dataset_without_previews_exports_the_stretched_dn(tmp_path: Path) -> None:
+def test_preview_mode_without_previews_exports_the_stretched_dn(tmp_path: Path) -> None:
     dataset = write_box_dataset(tmp_path / "d", keys=("dn_png16",))
-    export_dataset(dataset, tmp_path / "out", "speedplus", RULE, domain="render")
+    export_dataset(dataset, tmp_path / "out", "speedplus", RULE, domain="render", image="preview")
     for entries in read_labels(tmp_path / "out", "render").values():
         for entry in entries:
             index = int(entry["filename"][3:9]) - 1
@@ -180,8 +180,10 @@ def test_crops_with_moving_windows_are_refused_with_the_remedy(box: Path, tmp_pa
 
 def test_dataset_without_images_is_refused(tmp_path: Path) -> None:
     dataset = write_box_dataset(tmp_path / "d", keys=("object_mask_png", "depth_exr"))
-    with pytest.raises(SatsightError, match="neither preview_png8 nor dn_png16"):
+    with pytest.raises(SatsightError, match=r"needs dn_png16 \(output 'dn'\)"):
         export_dataset(dataset, tmp_path / "out", "speedplus", RULE)
+    with pytest.raises(SatsightError, match="neither preview_png8 nor dn_png16"):
+        export_dataset(dataset, tmp_path / "out", "speedplus", RULE, image="preview")
     assert not (tmp_path / "out").exists()
 
 

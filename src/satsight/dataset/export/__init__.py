@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from satsight.dataset.export.bop import write_bop
+from satsight.dataset.export.images import DEFAULT_IMAGE_MODE, ExportImages
 from satsight.dataset.export.source import ExportFrames, scan_frames
 from satsight.dataset.export.speedplus import DEFAULT_DOMAIN, write_speedplus
 from satsight.dataset.export.splits import SPLIT_NAMES, SplitRule, assign_splits
@@ -78,11 +79,16 @@ def export_dataset(
     crop: bool = False,
     overwrite: bool = False,
     domain: str = DEFAULT_DOMAIN,
+    image: str = DEFAULT_IMAGE_MODE,
+    white_dn: float | None = None,
 ) -> ExportSummary:
     """Export the complete dataset in ``source`` to ``out_dir`` in format ``fmt``.
 
     rule: the train / val / test split. crop: export the crops (automatic when the dataset
-    keeps only crops). domain: the SPEED+ image domain folder (``synthetic``).
+    keeps only crops). domain: the SPEED+ image domain folder (``synthetic``). image: how
+    the images are made from the DN (``images.IMAGE_MODES``: ``dn16``, ``raw16``,
+    ``linear8``, ``preview``); white_dn: for ``linear8``, the DN above the bias that reads
+    255 (default: the detector's saturation level).
     """
     if fmt not in FORMATS:
         raise SatsightError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}")
@@ -92,6 +98,7 @@ def export_dataset(
         )
     source, out_dir = Path(source), Path(out_dir)
     dataset = open_dataset(source)
+    images = ExportImages.of_dataset(dataset.header, image, white_dn)
     _check_out_dir(source, out_dir, overwrite)
     table = scan_frames(dataset, crop)
     use_crops = table.crop
@@ -102,14 +109,15 @@ def export_dataset(
     }
     with staged_folder(out_dir, overwrite) as root:
         if fmt == "bop":
-            notes = write_bop(dataset, splits, root)
+            notes = write_bop(dataset, splits, root, images)
         else:
-            notes = write_speedplus(dataset, splits, root, domain)
+            notes = write_speedplus(dataset, splits, root, domain, images)
         record = {
             "format": fmt,
             "source_dataset": str(source.resolve()),
             "scenario": dataset.header.get("scenario"),
             "crop": use_crops,
+            "image": images.record(),
             "split": {
                 "fractions": dict(zip(SPLIT_NAMES, rule.fractions, strict=True)),
                 "seed": rule.seed,

@@ -6,9 +6,11 @@ scripts/calc_gt_info.py and scripts/calc_model_info.py. Layout written::
 
     OUT/camera.json                          cx, cy, fx, fy, height, width
     OUT/models/obj_000001.ply, models_info.json
-    OUT/test_targets_bop19.json              when the test split has visible targets
+    OUT/models_eval/                         the same (BOP's evaluation models)
+    OUT/test_targets_bop19.json, _bop24.json when the test split has visible targets
+    OUT/BOP_TOOLKIT.md                       how to register the export in bop_toolkit
     OUT/{train,val,test}/000000/             one scene per non-empty split
-        gray/IMID.png                        8-bit grey image
+        gray/IMID.png                        grey image (``images.py``: 16-bit DN by default)
         depth/IMID.png                       16-bit depth, mm = value * depth_scale
         mask/IMID_000000.png, mask_visib/IMID_000000.png
         scene_camera.json, scene_gt.json, scene_gt_info.json
@@ -16,7 +18,15 @@ scripts/calc_gt_info.py and scripts/calc_model_info.py. Layout written::
 IMID is the satsight frame_index (six digits). Poses: ``cam_R_m2c`` (row-major) and
 ``cam_t_m2c`` (mm) with ``x_cam = R @ x_model + t``: satsight's R(q_cam_from_body) and
 t_cam_from_body_m * 1000, the model frame being the body frame. satsight has a single
-target that only it can hide, so its mask is both ``mask`` and ``mask_visib``.
+target that only it can hide, so its mask is both ``mask`` and ``mask_visib``; the
+silhouette cut off by the image border counts in ``px_count_all`` and ``bbox_obj``
+(``silhouette.py``), as in bop_toolkit's calc_gt_info.py.
+
+Pixels: bop_toolkit's renderers (renderer_vispy.py ``_calc_calib_proj``: the OpenGL
+projection maps x_cam to window x = fx X / Z + cx, and OpenGL puts pixel i's centre at
+window x = i + 0.5) place pixel corners at integers; satsight places pixel centres there.
+``cam_K`` therefore has cx, cy + 0.5, so the toolkit renders the model onto the pixels
+satsight's mask holds.
 
 The images are written on a few threads with a bounded number in flight, and the scene
 JSON files entry by entry as they are (``JsonEntries``): memory does not grow with the
@@ -26,35 +36,41 @@ number of images.
 from __future__ import annotations
 
 import json
+import math
 import shutil
 from array import array
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from satsight.dataset.export.bop_model import MM_PER_M, write_bop_model
+from satsight.dataset.export.bop_toolkit_notes import TOOLKIT_NOTES, toolkit_notes
+from satsight.dataset.export.images import ExportImages
 from satsight.dataset.export.json_entries import JsonEntries
+from satsight.dataset.export.silhouette import outside_silhouette
 from satsight.dataset.export.source import (
     ExportFrame,
     ExportFrames,
     read_depth_m,
-    read_gray8,
     read_mask,
     require_file,
-    require_image,
 )
 from satsight.dataset.image_files import encode_png
 from satsight.dataset.labels import mask_bbox_xyxy_px
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
 from satsight.frames.quaternion import matrix_from_quaternion
+from satsight.scene.loading import load_mesh
 
 OBJ_ID = 1
 SCENE_ID = 0
 GT_ID = 0  # the one annotated instance per image
+#: satsight pixel position + this = bop_toolkit's pixel position (module docstring).
+PIXEL_OFFSET_PX = 0.5
 UINT16_MAX = 65535
 #: Smallest depth_scale written (mm per depth unit).
 MIN_DEPTH_SCALE = 0.01
@@ -143,24 +159,73 @@ def bop_bbox(bbox_xyxy_px: list[int] | None) -> list[int]:
     return [x0, y0, x1 - x0, y1 - y0]
 
 
+def bop_K(K: np.ndarray) -> np.ndarray:
+    """satsight intrinsics (pixel centres at integers) -> BOP ``cam_K`` (pixel corners at
+    integers, the convention of bop_toolkit's renderers): cx, cy + 0.5 px."""
+    out = np.array(K, dtype=np.float64)
+    out[0, 2] += PIXEL_OFFSET_PX
+    out[1, 2] += PIXEL_OFFSET_PX
+    return out
+
+
+@dataclass(frozen=True)
+class BopFrameRule:
+    """What every image of a BOP export shares: how images are made, whether depth is
+    written, and the model (body frame, metres) whose silhouette beyond the image border
+    ``px_count_all`` and ``bbox_obj`` count."""
+
+    images: ExportImages
+    with_depth: bool
+    vertices_m: np.ndarray
+    faces: np.ndarray
+
+
+def gt_info(frame: ExportFrame, mask: np.ndarray, valid: int, rule: BopFrameRule) -> dict:
+    """One scene_gt_info entry, as bop_toolkit's calc_gt_info.py defines it.
+
+    The object is the only one in the scene, so its visible part is its mask; the whole
+    silhouette adds the pixels cut off by the image border (``outside_silhouette``).
+    """
+    count = int(np.count_nonzero(mask))
+    box = mask_bbox_xyxy_px(mask)
+    outside = outside_silhouette(
+        rule.vertices_m,
+        rule.faces,
+        matrix_from_quaternion(frame.q_cam_from_body),
+        frame.t_cam_from_body_m,
+        frame.K,
+        frame.size_px,
+    )
+    total = count + outside.pixel_count
+    whole = box
+    if outside.bbox_xyxy_px is not None and box is not None:
+        boxes = np.array([box, outside.bbox_xyxy_px])
+        whole = [*boxes[:, :2].min(axis=0).tolist(), *boxes[:, 2:].max(axis=0).tolist()]
+    visible = count > 0
+    return {
+        # calc_gt_info.py gives the object's box only when some of it is visible
+        "bbox_obj": bop_bbox(whole if visible else None),
+        "bbox_visib": bop_bbox(box),
+        "px_count_all": total,
+        "px_count_valid": valid,
+        "px_count_visib": count,
+        "visib_fract": count / total if total > 0 else 0.0,
+    }
+
+
 def _frame_entries(
-    frame: ExportFrame, scene_dir: Path, header: dict, with_depth: bool
-) -> tuple[dict, dict, dict, str]:
+    frame: ExportFrame, scene_dir: Path, rule: BopFrameRule
+) -> tuple[dict, dict, dict]:
     """Write one image's files; its scene_camera, scene_gt and scene_gt_info entries."""
     im = f"{frame.frame_index:06d}"
-    if "preview_png8" in frame.files:  # already the 8-bit image: copied as it is
-        shutil.copyfile(require_image(frame, _PURPOSE), scene_dir / "gray" / f"{im}.png")
-        image_key = "preview_png8"
-    else:
-        gray, image_key = read_gray8(frame, header, _PURPOSE)
-        (scene_dir / "gray" / f"{im}.png").write_bytes(encode_png(gray))
+    rule.images.write(frame, frame.camera_mode, scene_dir / "gray" / f"{im}.png", _PURPOSE)
     mask = read_mask(frame, _PURPOSE)
     mask_bytes = encode_png(mask.astype(np.uint8) * np.uint8(255))
     for folder in ("mask", "mask_visib"):
         (scene_dir / folder / f"{im}_{GT_ID:06d}.png").write_bytes(mask_bytes)
-    camera = {"cam_K": frame.K.reshape(-1).tolist()}
+    camera = {"cam_K": bop_K(frame.K).reshape(-1).tolist()}
     valid = 0
-    if with_depth:
+    if rule.with_depth:
         depth, scale = depth_png(read_depth_m(frame, _PURPOSE))
         (scene_dir / "depth" / f"{im}.png").write_bytes(encode_png(depth))
         camera["depth_scale"] = scale
@@ -171,36 +236,25 @@ def _frame_entries(
         "cam_t_m2c": (frame.t_cam_from_body_m * MM_PER_M).tolist(),
         "obj_id": OBJ_ID,
     }
-    count = int(np.count_nonzero(mask))
-    box = bop_bbox(mask_bbox_xyxy_px(mask))
-    info = {
-        "bbox_obj": box,
-        "bbox_visib": box,
-        "px_count_all": count,
-        "px_count_valid": valid,
-        "px_count_visib": count,
-        "visib_fract": 1.0 if count > 0 else 0.0,
-    }
-    return camera, gt, info, image_key
+    return camera, gt, gt_info(frame, mask, valid, rule)
 
 
 def write_bop_split(
     frames: Iterable[ExportFrame],
     split_dir: Path,
-    header: dict,
-    with_depth: bool,
+    rule: BopFrameRule,
     visible_ids: array | None = None,
-) -> set[str]:
-    """Write one split's scene 000000; returns the image sources. The image ids whose
-    target shows (px_count_visib > 0) are appended to ``visible_ids`` when given."""
+) -> SplitSummary:
+    """Write one split's scene 000000. The image ids whose target shows (px_count_visib
+    > 0) are appended to ``visible_ids`` when given."""
     scene_dir = split_dir / f"{SCENE_ID:06d}"
-    folders = ["gray", "mask", "mask_visib"] + (["depth"] if with_depth else [])
+    folders = ["gray", "mask", "mask_visib"] + (["depth"] if rule.with_depth else [])
     for folder in folders:
         (scene_dir / folder).mkdir(parents=True, exist_ok=True)
-    sources: set[str] = set()
+    summary = SplitSummary()
 
-    def entries(frame: ExportFrame) -> tuple[int, tuple[dict, dict, dict, str]]:
-        return frame.frame_index, _frame_entries(frame, scene_dir, header, with_depth)
+    def entries(frame: ExportFrame) -> tuple[int, tuple[dict, dict, dict]]:
+        return frame.frame_index, _frame_entries(frame, scene_dir, rule)
 
     with (
         ThreadPoolExecutor(max_workers=_WORKERS) as pool,
@@ -208,20 +262,44 @@ def write_bop_split(
         bop_json_entries(scene_dir / "scene_gt.json") as gts,
         bop_json_entries(scene_dir / "scene_gt_info.json") as infos,
     ):
-        for im_id, (camera, gt, info, source) in ordered_map(pool, entries, frames, _IN_FLIGHT):
+        for im_id, (camera, gt, info) in ordered_map(pool, entries, frames, _IN_FLIGHT):
             cameras.add(im_id, camera)
             gts.add(im_id, [gt])
             infos.add(im_id, [info])
-            sources.add(source)
+            summary.add(camera, gt, info)
             if visible_ids is not None and info["px_count_visib"] > 0:
                 visible_ids.append(im_id)
-    return sources
+    return summary
+
+
+@dataclass
+class SplitSummary:
+    """What the toolkit's registration needs to know of the images written: how many,
+    the largest depth_scale (mm per depth unit) and the camera-object distances (mm)."""
+
+    images: int = 0
+    max_depth_scale_mm: float = 0.0
+    min_distance_mm: float = math.inf
+    max_distance_mm: float = 0.0
+
+    def add(self, camera: dict, gt: dict, info: dict) -> None:
+        self.images += 1
+        self.max_depth_scale_mm = max(self.max_depth_scale_mm, camera.get("depth_scale", 0.0))
+        distance = float(np.linalg.norm(gt["cam_t_m2c"]))
+        self.min_distance_mm = min(self.min_distance_mm, distance)
+        self.max_distance_mm = max(self.max_distance_mm, distance)
+
+    def merge(self, other: SplitSummary) -> None:
+        self.images += other.images
+        self.max_depth_scale_mm = max(self.max_depth_scale_mm, other.max_depth_scale_mm)
+        self.min_distance_mm = min(self.min_distance_mm, other.min_distance_mm)
+        self.max_distance_mm = max(self.max_distance_mm, other.max_distance_mm)
 
 
 def camera_json(dataset: Dataset, first: ExportFrame) -> dict:
     """BOP camera.json (for sensor simulation): the full camera, or one crop-sized camera
     with the principal point at the crop centre (each image's exact K is its cam_K);
-    ``first``: the first frame exported."""
+    ``first``: the first frame exported. In BOP's pixel convention (``bop_K``)."""
     if first.crop:
         width, height = first.size_px
         K = first.K.copy()
@@ -230,6 +308,7 @@ def camera_json(dataset: Dataset, first: ExportFrame) -> dict:
         camera = dataset.header.get("camera") or {}
         K = np.asarray(camera.get("K", first.K), dtype=np.float64)
         width, height = camera.get("image_size_px", first.size_px)
+    K = bop_K(K)
     return {
         "cx": float(K[0, 2]),
         "cy": float(K[1, 2]),
@@ -240,7 +319,23 @@ def camera_json(dataset: Dataset, first: ExportFrame) -> dict:
     }
 
 
-def write_bop(dataset: Dataset, splits: dict[str, ExportFrames], root: Path) -> list[str]:
+def write_targets(root: Path, im_ids: array) -> None:
+    """The test targets of BOP's evaluation scripts: ``test_targets_bop19.json`` (pose
+    estimation: one instance of object 1 per image) and ``test_targets_bop24.json``
+    (detection: the images), for the test images showing the target."""
+    with bop_json_entries(root / "test_targets_bop19.json", list) as entries:
+        for im_id in im_ids:
+            entries.append(
+                {"im_id": im_id, "inst_count": 1, "obj_id": OBJ_ID, "scene_id": SCENE_ID}
+            )
+    with bop_json_entries(root / "test_targets_bop24.json", list) as entries:
+        for im_id in im_ids:
+            entries.append({"im_id": im_id, "scene_id": SCENE_ID})
+
+
+def write_bop(
+    dataset: Dataset, splits: dict[str, ExportFrames], root: Path, images: ExportImages
+) -> list[str]:
     """Write the BOP export of ``splits`` (name -> frames) into ``root``; returns notes.
 
     Three passes over the frames: which have depth, what each needs (checked before
@@ -251,31 +346,34 @@ def write_bop(dataset: Dataset, splits: dict[str, ExportFrames], root: Path) -> 
     for split in splits.values():
         for frame in split:  # fail before writing anything large
             first = frame if first is None else first
-            require_image(frame, _PURPOSE)
+            images.require(frame, _PURPOSE)
             require_file(frame, "object_mask_png", "BOP's masks and scene_gt_info.json")
             if with_depth:
                 require_file(frame, "depth_exr", _PURPOSE)
-    model = dataset.header.get("target", {}).get("model_obj", "model/target.obj")
-    info_entry = write_bop_model(dataset.root / model, root / "models", OBJ_ID)
+    model = dataset.root / dataset.header.get("target", {}).get("model_obj", "model/target.obj")
+    mesh = load_mesh(model)
+    info_entry = write_bop_model(mesh, root / "models", OBJ_ID)
     write_bop_json(root / "models" / "models_info.json", {OBJ_ID: info_entry})
-    write_bop_json(root / "camera.json", camera_json(dataset, first))
-    sources: set[str] = set()
+    # BOP's error functions read models_eval/: the same model (its vertices hold the
+    # maxima MSSD and MSPD look for, as the convex hull's corners are among them).
+    shutil.copytree(root / "models", root / "models_eval")
+    camera = camera_json(dataset, first)
+    write_bop_json(root / "camera.json", camera)
+    rule = BopFrameRule(images, with_depth, mesh.vertices_m, mesh.faces)
+    totals = SplitSummary()
     targets = array("q")  # test images showing the target
+    written = []
     for name, split_frames in splits.items():
         if not len(split_frames):
             continue
         visible = targets if name == "test" else None
-        sources |= write_bop_split(split_frames, root / name, dataset.header, with_depth, visible)
+        totals.merge(write_bop_split(split_frames, root / name, rule, visible))
+        written.append(name)
     if targets:
-        with bop_json_entries(root / "test_targets_bop19.json", list) as entries:
-            for im_id in targets:
-                entries.append(
-                    {"im_id": im_id, "inst_count": 1, "obj_id": OBJ_ID, "scene_id": SCENE_ID}
-                )
-    gray = {
-        frozenset({"preview_png8"}): "gray: 8-bit previews",
-        frozenset({"dn_png16"}): "gray: DN stretched to 8 bits (no previews)",
-    }.get(frozenset(sources), "gray: 8-bit previews, DN stretched where none")
+        write_targets(root, targets)
+    (root / TOOLKIT_NOTES).write_text(
+        toolkit_notes(root.name, camera, info_entry, totals, written, with_depth, bool(targets)),
+        encoding="utf-8",
+    )
     depth = "depth: 16-bit PNG, per-image depth_scale" if with_depth else "no depth"
-    notes = [gray, depth]
-    return notes
+    return [images.note(), depth, "cam_K: principal point +0.5 px (BOP pixel origin)"]

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from satsight.scene.loading import load_mesh
+from satsight.scene.mesh import TargetMesh
 
 MM_PER_M = 1000.0
 #: Vertices per block of the pairwise-distance search (memory ~ block^2 * 8 bytes).
@@ -100,9 +100,8 @@ def models_info_entry(vertices_mm: np.ndarray) -> dict:
     }
 
 
-def write_bop_model(model_obj: Path, models_dir: Path, obj_id: int = 1) -> dict:
-    """Write ``obj_{obj_id:06d}.ply`` from the dataset's OBJ (metres); its info entry (mm)."""
-    mesh = load_mesh(model_obj)
+def write_bop_model(mesh: TargetMesh, models_dir: Path, obj_id: int = 1) -> dict:
+    """Write ``obj_{obj_id:06d}.ply`` of the target mesh (metres); its info entry (mm)."""
     vertices_mm = mesh.vertices_m * MM_PER_M
     normals = angle_weighted_normals(mesh.vertices_m, mesh.faces)
     models_dir.mkdir(parents=True, exist_ok=True)

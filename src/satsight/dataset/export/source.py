@@ -23,7 +23,6 @@ import numpy as np
 from satsight.config.outputs import OUTPUT_FILE_KEYS
 from satsight.dataset.image_files import read_exr, read_png
 from satsight.dataset.journal import JournalFrames
-from satsight.dataset.preview import PreviewStretch
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
 
@@ -39,6 +38,7 @@ class ExportFrame:
     Hamilton quaternion. t_cam_from_body_m: (3,) metres, camera frame (OpenCV axes).
     K: (3, 3) intrinsics of this view, pixels. size_px: (W, H). files: file key ->
     absolute path of this view's files. crop: whether this view is the frame's crop.
+    camera_mode: the camera that took it (``primary``, or ``far`` beyond the switch range).
     """
 
     frame_index: int
@@ -48,6 +48,7 @@ class ExportFrame:
     size_px: tuple[int, int]
     files: dict[str, Path]
     crop: bool
+    camera_mode: str = "primary"
 
 
 @dataclass(frozen=True)
@@ -151,6 +152,7 @@ def export_frame(dataset: Dataset, record: dict, crop: bool) -> ExportFrame:
         size_px=size,
         files=files,
         crop=crop,
+        camera_mode=str(record.get("camera_mode", "primary")),
     )
 
 
@@ -167,52 +169,6 @@ def require_file(frame: ExportFrame, key: str, purpose: str) -> Path:
     if not path.is_file():
         raise SatsightError(f"{path} is missing: the dataset is damaged; regenerate it")
     return path
-
-
-def dn_stretch(header: dict) -> tuple[float, float]:
-    """(bias_dn, full_well_dn) of the dataset's detector, for the 8-bit DN stretch."""
-    detector = (header.get("sensor") or {}).get("detector") or {}
-    try:
-        bias = float(detector["bias_dn"])
-        full_well = bias + float(detector["full_well_e"]) / float(
-            detector["conversion_gain_e_per_dn"]
-        )
-        adc_max = float((1 << int(detector["adc_bits"])) - 1)
-    except (KeyError, TypeError, ValueError, ZeroDivisionError):
-        raise SatsightError(
-            "the dataset has no 8-bit previews and its manifest lacks sensor.detector "
-            "(bias_dn, full_well_e, conversion_gain_e_per_dn, adc_bits) to stretch the DN "
-            "images; regenerate it with 'preview' in outputs.files"
-        ) from None
-    return bias, min(full_well, adc_max)
-
-
-def require_image(frame: ExportFrame, purpose: str) -> Path:
-    """The path of the frame's 8-bit preview, else its DN image, or a SatsightError."""
-    for key in ("preview_png8", "dn_png16"):
-        if key in frame.files:
-            return require_file(frame, key, purpose)
-    raise SatsightError(
-        f"{purpose} needs an image, and {'crop' if frame.crop else 'frame'} "
-        f"{frame.frame_index} has neither preview_png8 nor dn_png16; regenerate the dataset "
-        "with 'preview' or 'dn' in outputs.files"
-    )
-
-
-def read_gray8(frame: ExportFrame, header: dict, purpose: str) -> tuple[np.ndarray, str]:
-    """The frame's 8-bit grey image and the file key it came from.
-
-    The 8-bit preview when the dataset has it; otherwise the raw DN with the previews'
-    stretch as labels.json's ``preview`` entry names it (black at the bias, white at full
-    well; asinh or gamma 2.2, gamma for datasets from before the choice existed).
-    """
-    path = require_image(frame, purpose)
-    if "preview_png8" in frame.files:
-        return _grey(read_png(path), frame, np.uint8), "preview_png8"
-    dn = _grey(read_png(path), frame, np.uint16)
-    bias, full_well = dn_stretch(header)
-    stretch = PreviewStretch.from_header(header.get("preview"))
-    return stretch.apply(dn, bias, full_well), "dn_png16"
 
 
 def read_mask(frame: ExportFrame, purpose: str) -> np.ndarray:

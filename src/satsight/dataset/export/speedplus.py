@@ -3,7 +3,7 @@
 Layout written::
 
     OUT/camera.json                 cameraMatrix, distCoeffs, Nu, Nv, ppx, ppy, fx, fy, ccx, ccy
-    OUT/DOMAIN/images/imgNNNNNN.png 8-bit grey images, NNNNNN = frame_index + 1
+    OUT/DOMAIN/images/imgNNNNNN.png grey images (``images.py``), NNNNNN = frame_index + 1
     OUT/DOMAIN/train.json, validation.json, test.json
                                     [{filename, q_vbs2tango_true, r_Vo2To_vbs_true}, ...]
 
@@ -30,14 +30,13 @@ does not grow with the number of images.
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
 
+from satsight.dataset.export.images import ExportImages
 from satsight.dataset.export.json_entries import JsonEntries
-from satsight.dataset.export.source import ExportFrame, ExportFrames, read_gray8, require_image
-from satsight.dataset.image_files import encode_png
+from satsight.dataset.export.source import ExportFrame, ExportFrames
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
 from satsight.frames.quaternion import canonical_quaternion
@@ -131,18 +130,12 @@ def camera_json(dataset: Dataset, K: np.ndarray, size: tuple[int, int]) -> dict:
     }
 
 
-def _write_image(frame: ExportFrame, header: dict, images: Path) -> str:
-    target = images / image_name(frame.frame_index)
-    if "preview_png8" in frame.files:  # already the 8-bit image: copied as it is
-        shutil.copyfile(require_image(frame, _PURPOSE), target)
-        return "preview_png8"
-    gray, key = read_gray8(frame, header, _PURPOSE)
-    target.write_bytes(encode_png(gray))
-    return key
-
-
 def write_speedplus(
-    dataset: Dataset, splits: dict[str, ExportFrames], root: Path, domain: str
+    dataset: Dataset,
+    splits: dict[str, ExportFrames],
+    root: Path,
+    domain: str,
+    images: ExportImages,
 ) -> list[str]:
     """Write the SPEED+ export of ``splits`` into ``root``; returns notes for the summary.
 
@@ -152,17 +145,16 @@ def write_speedplus(
     K, size = _shared_camera(splits)
     for split in splits.values():
         for frame in split:  # fail before writing anything large
-            require_image(frame, _PURPOSE)
+            images.require(frame, _PURPOSE)
     (root / "camera.json").write_text(json_text(camera_json(dataset, K, size)), encoding="utf-8")
-    images = root / domain / "images"
-    images.mkdir(parents=True)
-    sources = set()
+    folder = root / domain / "images"
+    folder.mkdir(parents=True)
     for name, split_frames in splits.items():
         # the layout of json_text: one label per line, a final newline
         path = root / domain / LABEL_FILES[name]
         with JsonEntries(path, list, final_newline=True) as labels:
             for frame in split_frames:
-                sources.add(_write_image(frame, dataset.header, images))
+                target = folder / image_name(frame.frame_index)
+                images.write(frame, frame.camera_mode, target, _PURPOSE)
                 labels.append(label_entry(frame))
-    source = "8-bit previews" if sources == {"preview_png8"} else "DN stretched to 8 bits"
-    return [f"images: {source}", "principal point shifted +0.5 px (SPEED+ pixel origin)"]
+    return [images.note(), "principal point shifted +0.5 px (SPEED+ pixel origin)"]
