@@ -232,7 +232,8 @@ def test_depth_recovers_metres_within_the_quantum_at_50_km(bop: Path, labels: di
     for frame in labels["frames"]:
         im = images[frame["frame_index"]]
         R, t = box_pose(frame["frame_index"])
-        truth_m = ray_cast_box(R, t, im["K"] - BOP_K_SHIFT, (im["mask"].shape[1], im["mask"].shape[0]))
+        size = (im["mask"].shape[1], im["mask"].shape[0])
+        truth_m = ray_cast_box(R, t, im["K"] - BOP_K_SHIFT, size)
         scale = im["camera"]["depth_scale"]
         assert np.array_equal(im["depth_mm"] > 0, truth_m > 0)
         assert np.array_equal(truth_m > 0, im["mask"])

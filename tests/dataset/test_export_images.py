@@ -131,5 +131,5 @@ def test_far_camera_frames_use_their_own_detector_levels() -> None:
 
 
 def test_manifest_without_detector_is_refused_with_the_remedy() -> None:
-    with pytest.raises(SatsightError, match="lacks sensor.detector"):
+    with pytest.raises(SatsightError, match=r"lacks sensor\.detector"):
         ExportImages.of_dataset({"sensor": {}}, "dn16")
