@@ -157,7 +157,7 @@ def write_box_dataset(
         "sensor": {"detector": DETECTOR},
         "target": {
             "model_obj": "model/target.obj",
-            "keypoints_body_m": mesh.keypoints_body_m.tolist(),
+            "keypoints_body_m": mesh.box_keypoints_body_m.tolist(),
         },
     }
     (root / "manifest.json").write_text(json.dumps(header, indent=1))
@@ -175,7 +175,7 @@ def write_box_dataset(
             "K": K.tolist(),
             "image_size_px": list(SIZE_PX),
             "bbox_xyxy_px": bbox,
-            "keypoints_px": _project(K, R, t, mesh.keypoints_body_m).tolist(),
+            "keypoints_px": _project(K, R, t, mesh.box_keypoints_body_m).tolist(),
             "object_pixel_count": int((depth > 0).sum()),
             "files": _write_files(root, index, arrays, keys, False) if full_frame else {},
         }
@@ -190,7 +190,7 @@ def write_box_dataset(
                 "box_xyxy_px": [x0, y0, x1, y1],
                 "K": K_crop.tolist(),
                 "bbox_xyxy_px": mask_bbox_xyxy_px(window["object_mask_png"] > 0),
-                "keypoints_px": _project(K_crop, R, t, mesh.keypoints_body_m).tolist(),
+                "keypoints_px": _project(K_crop, R, t, mesh.box_keypoints_body_m).tolist(),
                 "files": _write_files(root, index, window, keys, True),
             }
         records.append(record)

@@ -3,9 +3,10 @@
 ``write_synthetic_dataset`` copies one real frame record of a small rendered dataset
 ``count`` times, each copy a frame of its own: its frame and plan index changed, its pose
 turned about the optical axis and moved along it, and every label that follows from the
-pose recomputed (keypoints, their depths, the range; the crop's keypoints), so that
-``satsight validate`` finds it clean. Its files are either none (labels only) or the
-template frame's, shared by every frame (images are written once, not ``count`` times).
+pose recomputed (keypoints and box keypoints, their depths, the range; the crop's
+keypoints), so that ``satsight validate`` finds it clean (``keypoints_visible`` is left
+out: it would need the depth image of the moved pose). Its files are either none (labels
+only) or the template frame's, shared by every frame (images are written once, not ``count`` times).
 The dataset is closed as ``generate`` closes one (``finalize_dataset``); no record is held.
 """
 
@@ -75,12 +76,21 @@ def moved_record(record: dict, poses: dict, index: int) -> dict:
         "q_cam_from_body": poses["q"][index].tolist(),
         "t_cam_from_body_m": poses["t"][index].tolist(),
         "range_m": float(np.linalg.norm(poses["t"][index])),
-        "keypoints_px": poses["pixels"][index].tolist(),
-        "keypoints_depth_m": points_cam[:, 2].tolist(),
         "phase_angle_deg": 180.0 * ((index * 0.618034) % 1.0),
     }
-    if "crop" in record:
-        out["crop"] = {**record["crop"], "keypoints_px": poses["crop_pixels"][index].tolist()}
+    out.pop("keypoints_visible", None)
+    crop = None if "crop" not in record else {**record["crop"]}
+    if crop is not None:
+        crop.pop("keypoints_visible", None)
+        out["crop"] = crop
+    start = 0
+    for name, size in poses["sets"]:
+        part = slice(start, start + size)
+        out[f"{name}_px"] = poses["pixels"][index][part].tolist()
+        out[f"{name}_depth_m"] = points_cam[part, 2].tolist()
+        if crop is not None:
+            crop[f"{name}_px"] = poses["crop_pixels"][index][part].tolist()
+        start += size
     return out
 
 
@@ -115,8 +125,14 @@ def write_synthetic_dataset(
         shutil.copyfile(template / relative, root / relative)
         record["files"][key] = relative
         record["checksums"][relative] = file_checksum(root / relative)
-    keypoints = np.array(manifest["target"]["keypoints_body_m"], dtype=np.float64)
-    poses = moved_poses(record, keypoints, count)
+    target = manifest["target"]
+    sets = [
+        (name, np.array(target[f"{name}_body_m"], dtype=np.float64))
+        for name in ("keypoints", "box_keypoints")
+        if f"{name}_body_m" in target
+    ]
+    poses = moved_poses(record, np.vstack([points for _, points in sets]), count)
+    poses["sets"] = [(name, len(points)) for name, points in sets]
 
     def lines() -> Iterator[bytes]:
         for index in range(count):

@@ -179,7 +179,7 @@ def test_frame_geometry_is_in_metres_and_pixels(rendered) -> None:
         t = frame.t_cam_from_body_m
         assert np.linalg.norm(t) == pytest.approx(distance_km * 1e3, abs=ONE_UM)
         # Every visible surface lies between the nearest and farthest box corner (metres).
-        corners_depth_m = np.array(frame.labels["keypoints_depth_m"][:8])
+        corners_depth_m = np.array(frame.labels["box_keypoints_depth_m"][:8])
         depth = frame.depth_m[mask]
         assert corners_depth_m.min() - ONE_MM <= depth.min()
         assert depth.max() <= corners_depth_m.max() + ONE_MM
@@ -195,7 +195,7 @@ def test_frame_geometry_is_in_metres_and_pixels(rendered) -> None:
         corners_cam = corners_body * half @ R.T + t
         uvw = corners_cam @ frame.K.T
         np.testing.assert_allclose(
-            uvw[:, :2] / uvw[:, 2:], np.array(frame.labels["keypoints_px"][:8]), atol=1e-6
+            uvw[:, :2] / uvw[:, 2:], np.array(frame.labels["box_keypoints_px"][:8]), atol=1e-6
         )
         center = frame.K @ t
         np.testing.assert_allclose(

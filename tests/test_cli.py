@@ -113,7 +113,9 @@ def test_labels_top_level(labels) -> None:
     assert [p["part_id"] for p in parts] == list(range(1, len(parts) + 1))
     assert all(p["name"] and p["material"] and p["triangle_count"] > 0 for p in parts)
     assert labels["target"]["name"] == "two_wings_dish-seed3"
-    assert len(labels["target"]["keypoints_body_m"]) == 9
+    assert len(labels["target"]["box_keypoints_body_m"]) == 9
+    assert len(labels["target"]["keypoints_body_m"]) == 11  # surface keypoints by default
+    assert labels["target"]["keypoints"]["method"] == "surface"
     az, el = np.radians(40.0), np.radians(35.0)
     for frame in labels["frames"]:
         np.testing.assert_allclose(
@@ -224,7 +226,7 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
 
     # The box centre keypoint lies on the optical axis (views look at the box centre).
     np.testing.assert_allclose(
-        frame["keypoints_px"][8], [camera.cx_px, camera.cy_px], rtol=0, atol=1e-6
+        frame["box_keypoints_px"][8], [camera.cx_px, camera.cy_px], rtol=0, atol=1e-6
     )
 
 
@@ -233,7 +235,7 @@ def _check_photometry(labels: dict, frame: dict, radiance: np.ndarray, on: np.nd
     each pixel's solid angle (p / f)^2 cos^3(theta) over the pixels whose footprint meets
     the target's projected box, but for those near the Earth's disc and not near the target;
     its V-equivalent magnitude -26.76 - 2.5 log10(E / E_sun) with the Sun at 1 AU."""
-    corners = np.array(frame["keypoints_px"][:8])
+    corners = np.array(frame["box_keypoints_px"][:8])
     x0, y0 = np.floor(corners.min(axis=0) + 0.5).astype(int)
     x1, y1 = np.floor(corners.max(axis=0) + 0.5).astype(int) + 1
     window = np.s_[y0:y1, x0:x1]

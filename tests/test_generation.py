@@ -388,9 +388,9 @@ def test_crop_files_are_the_full_frame_cut_with_shifted_intrinsics(reference: Pa
         # The target's box centre projects at the crop's centre pixel unless the crop was
         # shifted inward at the image border.
         for axis, extent in ((0, WIDTH_PX), (1, HEIGHT_PX)):
-            full = frame["keypoints_px"][-1][axis]
+            full = frame["box_keypoints_px"][-1][axis]
             if CROP_PX // 2 <= np.floor(full + 0.5) <= extent - CROP_PX // 2:
-                assert np.floor(crop["keypoints_px"][-1][axis] + 0.5) == CROP_PX // 2
+                assert np.floor(crop["box_keypoints_px"][-1][axis] + 0.5) == CROP_PX // 2
         mask = read_png(dataset.path(frame, "object_mask_png", crop=True)) > 0
         assert int(mask.sum()) == crop["object_pixel_count"]
 
@@ -447,7 +447,7 @@ def test_frames_carry_the_targets_irradiance_and_v_magnitude(reference: Path) ->
         summed = np.ones(mask.shape, dtype=bool)
         if (band[~mask] > 0).any():  # the Earth behind the target, all around it
             assert (band[~mask] > 0).all()
-            corners = np.array(frame["keypoints_px"][:8])
+            corners = np.array(frame["box_keypoints_px"][:8])
             x0, y0 = np.floor(corners.min(axis=0) + 0.5).astype(int)
             x1, y1 = np.floor(corners.max(axis=0) + 0.5).astype(int) + 1
             summed = binary_dilation(mask, structure=np.ones((3, 3), dtype=bool))

@@ -117,7 +117,7 @@ def run_lightcurve(
             image,
             camera,
             engine.sensor.channel_weights,
-            labels["keypoints_px"][:8],
+            labels["box_keypoints_px"][:8],
             sun_irradiance,
             sun_distance_m,
         )

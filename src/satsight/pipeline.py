@@ -17,7 +17,12 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.config.scenario import CameraConfig, Scenario, TargetConfig
 from satsight.dataset.frame_files import FrameArrays
 from satsight.dataset.journal import file_checksum
-from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
+from satsight.dataset.labels import (
+    KEYPOINT_DEPTH_TOLERANCE,
+    crop_labels,
+    crop_window_xyxy_px,
+    frame_labels,
+)
 from satsight.dataset.preview import PreviewStretch
 from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.sun_moon import AU_M
@@ -32,6 +37,7 @@ from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage, SunLight
 from satsight.render.renderer import Renderer
 from satsight.scene.band_reflectance import builtins_from_library, library_materials
+from satsight.scene.keypoints import KEYPOINT_DESCRIPTIONS, target_keypoints_body_m
 from satsight.scene.loading import load_mesh
 from satsight.scene.material_library import LIBRARY_PREFIX
 from satsight.scene.materials import FIRST_MATERIALS
@@ -48,8 +54,11 @@ CONVENTIONS = {
     "pixel_origin": "(0, 0) is the centre of the top-left pixel",
     "depth": "metres along +z_cam; 0 where no surface",
     "part_mask": "0 background; part id = part index + 1",
-    "keypoints": "8 bounding-box corners (bit 0: x, bit 1: y, bit 2: z; 0 min, 1 max), then "
-    "the box centre",
+    "keypoints": "target.keypoints_body_m projected (target.keypoints says how they were "
+    "chosen); keypoints_visible: inside the image and not hidden by the target (depth "
+    "buffer, 3 x 3 pixels, tolerance " + KEYPOINT_DEPTH_TOLERANCE + ")",
+    "box_keypoints": "8 bounding-box corners (bit 0: x, bit 1: y, bit 2: z; 0 min, 1 max), "
+    "then the box centre",
 }
 
 
@@ -379,6 +388,9 @@ class FrameEngine:
     def __init__(self, scenario: Scenario):
         self.scenario = scenario
         self.mesh = build_target(scenario.target, scenario.sun.band_nm)
+        self.keypoints_body_m = target_keypoints_body_m(
+            self.mesh, scenario.target.keypoints.build()
+        )
         self.camera = scenario.camera.build()
         self.track, self.plan_indices = planned_frames(scenario, self.mesh)
         self.sensor = build_sensor(scenario)
@@ -443,13 +455,15 @@ class FrameEngine:
         """
         scenario, plan_index = self.scenario, frame.plan_index
         camera, sensor = self.modes[frame.camera_mode]
-        labels = frame_labels(self.mesh, camera, frame.cam_from_body, frame.sun, frame.image)
+        labels = frame_labels(
+            self.mesh, camera, frame.cam_from_body, frame.sun, frame.image, self.keypoints_body_m
+        )
         sun_irradiance, sun_distance_m = self.sun_irradiance_at_camera(plan_index)
         photometry = frame_photometry(
             frame.image,
             camera,
             sensor.channel_weights,
-            labels["keypoints_px"][:8],
+            labels["box_keypoints_px"][:8],
             sun_irradiance,
             sun_distance_m,
         )
@@ -475,7 +489,8 @@ class FrameEngine:
         crop = scenario.outputs.crop
         box = None
         if crop is not None:
-            box = crop_window_xyxy_px(labels["keypoints_px"][-1], crop.size_px, frame.image.shape)
+            center_px = labels["box_keypoints_px"][-1]
+            box = crop_window_xyxy_px(center_px, crop.size_px, frame.image.shape)
             record["crop"] = crop_labels(labels, frame.image.object_mask, box)
         return record, FrameArrays(frame.image, dn_image), box
 
@@ -525,7 +540,13 @@ class FrameEngine:
             "target": {
                 **mesh.summary(),
                 "model_obj": "model/target.obj",
-                "keypoints_body_m": mesh.keypoints_body_m.tolist(),
+                "keypoints_body_m": self.keypoints_body_m.tolist(),
+                "keypoints": {
+                    "method": scenario.target.keypoints.method,
+                    "count": len(self.keypoints_body_m),
+                    "description": KEYPOINT_DESCRIPTIONS[scenario.target.keypoints.method],
+                },
+                "box_keypoints_body_m": mesh.box_keypoints_body_m.tolist(),
                 # A mesh file edited between an interruption and --resume is refused.
                 "mesh_file_sha256": None
                 if scenario.target.mesh is None

@@ -59,7 +59,7 @@ def test_bounds_center_extent_and_radius_of_unit_cube() -> None:
 
 
 def test_keypoints_are_corners_by_bits_then_centre() -> None:
-    keypoints = cube().keypoints_body_m
+    keypoints = cube().box_keypoints_body_m
     assert keypoints.shape == (9, 3)
     # Corner k of the bounding box of [0, 1]^3 is exactly vertex k of the hand-built cube.
     np.testing.assert_allclose(keypoints[:8], CUBE_VERTICES_M, atol=ATOL_M)
@@ -68,9 +68,9 @@ def test_keypoints_are_corners_by_bits_then_centre() -> None:
 
 def test_keypoints_follow_a_shifted_box() -> None:
     mesh = cube(vertices_m=CUBE_VERTICES_M * [2.0, 3.0, 4.0] - [1.0, 1.0, 1.0])
-    np.testing.assert_allclose(mesh.keypoints_body_m[0], [-1, -1, -1], atol=ATOL_M)
-    np.testing.assert_allclose(mesh.keypoints_body_m[7], [1, 2, 3], atol=ATOL_M)
-    np.testing.assert_allclose(mesh.keypoints_body_m[5], [1, -1, 3], atol=ATOL_M)  # bits x, z
+    np.testing.assert_allclose(mesh.box_keypoints_body_m[0], [-1, -1, -1], atol=ATOL_M)
+    np.testing.assert_allclose(mesh.box_keypoints_body_m[7], [1, 2, 3], atol=ATOL_M)
+    np.testing.assert_allclose(mesh.box_keypoints_body_m[5], [1, -1, 3], atol=ATOL_M)  # bits x, z
 
 
 def test_part_ids_start_at_one_and_summary_counts_triangles() -> None:

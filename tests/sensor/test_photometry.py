@@ -274,7 +274,7 @@ def test_a_satellite_smaller_than_its_pixels_keeps_all_its_light(llvm_variant) -
     image = Renderer(mesh, settings, llvm_variant).render(
         camera, pose, LightField.sun_only(sun, E_SUN_W_M2), seed=1
     )
-    corners_px = camera.project(pose.apply(mesh.keypoints_body_m[:8])).tolist()
+    corners_px = camera.project(pose.apply(mesh.box_keypoints_body_m[:8])).tolist()
     labels = frame_photometry(image, camera, WEIGHTS, corners_px, E_SUN_W_M2, AU_M)
     omega = pixel_solid_angles_sr(camera, (0, 0, 32, 32))
     band = image.radiance_w_m2_sr @ WEIGHTS

@@ -39,6 +39,12 @@ from satsight.config.orbital import (
 )
 from satsight.config.outputs import OutputsConfig
 from satsight.config.sensor import DetectorConfig, ExposureConfig, OpticsConfig, StarsConfig
+from satsight.config.target import (  # noqa: F401 (re-exported: the scenario's sections)
+    KeypointsConfig,
+    MeshTargetConfig,
+    ProceduralTargetConfig,
+    TargetConfig,
+)
 from satsight.config.yaml_safety import load_yaml_file
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
@@ -53,7 +59,6 @@ from satsight.render.settings import (
     SUN_REPRESENTATIONS,
     RenderSettings,
 )
-from satsight.scene.procedural import SATELLITE_CLASSES
 from satsight.sensor.detector import DetectorParameters
 from satsight.sensor.optics import Optics
 
@@ -130,78 +135,6 @@ class CameraConfig(_Strict):
             width_px=self.width_px or base.width_px,
             height_px=self.height_px or base.height_px,
         )
-
-
-class ProceduralTargetConfig(_Strict):
-    """A procedural satellite (``satsight.scene.procedural``): class, seed and surfaces.
-
-    smooth_normals: crease-angle shading normals on curved parts (dish, cylinders).
-    textures: solar-cell grids, MLI crinkle and radiator strips.
-    materials: ``builtin`` (the typed built-in values) or ``library`` (the spectral
-    library's materials for the scenario's band, ``band_reflectance.BUILTIN_LIBRARY_MATCH``).
-    """
-
-    satellite_class: str = "two_wings"
-    seed: int = Field(default=0, ge=0)
-    smooth_normals: bool = True
-    textures: bool = True
-    materials: Literal["builtin", "library"] = "builtin"
-
-    @model_validator(mode="after")
-    def _known_class(self) -> ProceduralTargetConfig:
-        if self.satellite_class not in SATELLITE_CLASSES:
-            raise ValueError(
-                f"unknown satellite_class '{self.satellite_class}'; "
-                f"choose one of {', '.join(SATELLITE_CLASSES)}"
-            )
-        return self
-
-
-class MeshTargetConfig(_Strict):
-    """A mesh file (``satsight.scene.loading.load_mesh``).
-
-    materials: {part name or the file's material name: built-in material name, or
-    ``library:NAME`` for a material of the spectral library (``satsight materials``), its
-    colour integrated over the scenario's band}; those parts take that material instead of
-    the file's values (which otherwise win, even where a file material is named like a
-    built-in one). crease_angle_deg: parts the file gives no normals are smoothed across
-    edges flatter than this (0: flat triangles).
-    """
-
-    path: Path
-    scale_m: float = Field(default=1.0, gt=0, description="metres per file unit")
-    materials: dict[str, str] = Field(default_factory=dict)
-    crease_angle_deg: float = Field(default=30.0, ge=0.0, le=180.0)
-
-    @field_validator("materials")
-    @classmethod
-    def _known_builtins(cls, value: dict[str, str]) -> dict[str, str]:
-        from satsight.scene.material_library import LIBRARY_PREFIX, list_materials
-        from satsight.scene.materials import FIRST_MATERIALS
-
-        library = list_materials()
-        known = set(FIRST_MATERIALS) | {LIBRARY_PREFIX + name for name in library}
-        unknown = sorted({v for v in value.values() if v not in known})
-        if unknown:
-            raise ValueError(
-                f"unknown material(s) {', '.join(unknown)}; choose a built-in "
-                f"({', '.join(sorted(FIRST_MATERIALS))}) or a library material "
-                f"({', '.join(LIBRARY_PREFIX + name for name in library)})"
-            )
-        return value
-
-
-class TargetConfig(_Strict):
-    """Exactly one of ``procedural`` or ``mesh``."""
-
-    procedural: ProceduralTargetConfig | None = None
-    mesh: MeshTargetConfig | None = None
-
-    @model_validator(mode="after")
-    def _exactly_one(self) -> TargetConfig:
-        if (self.procedural is None) == (self.mesh is None):
-            raise ValueError("give exactly one of 'procedural' or 'mesh'")
-        return self
 
 
 def _direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
@@ -576,7 +509,8 @@ def parse_scenario(data: object, source: str = "scenario") -> Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario YAML file. Mesh paths, and the files of ``tle``, ``omm``
+    """Read and validate a scenario YAML file. Mesh and keypoint file paths, and the files
+    of ``tle``, ``omm``
     and ``oem`` (target or observer), are resolved against its folder.
 
     The file is read within the limits of ``satsight.config.yaml_safety`` (size, nesting,
@@ -585,10 +519,7 @@ def load_scenario(path: str | Path) -> Scenario:
     path = Path(path)
     data = _resolve_trajectory_files(load_yaml_file(path), path.parent)
     scenario = parse_scenario(data, str(path))
-    mesh = scenario.target.mesh
-    if mesh is not None and not mesh.path.is_absolute():
-        resolved = (path.parent / mesh.path).resolve()
-        scenario = scenario.model_copy(
-            update={"target": TargetConfig(mesh=mesh.model_copy(update={"path": resolved}))}
-        )
+    target = scenario.target.with_paths_from(path.parent)
+    if target is not scenario.target:
+        scenario = scenario.model_copy(update={"target": target})
     return scenario

@@ -5,7 +5,9 @@ Tolerances, and why:
 - Quaternion norm within ``QUATERNION_NORM_TOLERANCE`` of 1: labels are written normalised
   in float64 and JSON keeps every bit, so any larger error is an edit.
 - Keypoints within ``KEYPOINT_RTOL`` times max(1, |(u, v)|) pixels of the projection of
-  ``header["target"]["keypoints_body_m"]`` through K and the pose. Relative, because a
+  ``header["target"]["keypoints_body_m"]`` (and the box's, ``box_keypoints_body_m``)
+  through K and the pose; ``keypoints_visible`` as the depth image decides it
+  (``satsight.dataset.labels.keypoints_visible``). Relative, because a
   corner near the camera plane projects thousands of pixels off the image, where rounding
   grows with the coordinate; 1e-6 is ten orders above float64 rounding, and a pose error it
   would miss moves a keypoint by less than a millionth of its pixel coordinates (0.004 px
@@ -18,12 +20,13 @@ Tolerances, and why:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from satsight.dataset.file_checks import read_frame_file
-from satsight.dataset.labels import mask_bbox_xyxy_px
+from satsight.dataset.labels import keypoints_visible, mask_bbox_xyxy_px
 from satsight.dataset.problems import Findings
 from satsight.frames.quaternion import matrix_from_quaternion
 
@@ -37,11 +40,22 @@ BBOX_MARGIN_PX = 1.0
 KEPT_IMAGES = ("object_mask_png", "part_mask_png16", "depth_exr", "background_mask_png")
 
 
+@dataclass(frozen=True)
+class TargetPoints:
+    """The manifest's body-frame points (metres) that frames label: the keypoints (N, 3)
+    and the box's corners and centre (9, 3); None where the manifest lacks them. Datasets
+    written before ``box_keypoints_body_m`` existed labelled the box as their keypoints."""
+
+    keypoints_body_m: np.ndarray | None
+    box_keypoints_body_m: np.ndarray | None
+    box_is_keypoints: bool = False
+
+
 class FrameCheck:
     """Checks of one frame record and its files; problems go to ``self.findings``.
 
-    root: the dataset folder. frame: the frame's record. keypoints_body_m: (N, 3) box
-    corners and centre of the target, body frame, metres (None: not checked).
+    root: the dataset folder. frame: the frame's record. points: the target's keypoints and
+    box corners in the body frame (``TargetPoints``).
     record_file: where the record is read from (``labels.json``, or ``journal.jsonl`` for
     an incomplete dataset).
     hashes: compare SHA-256 sums.
@@ -51,14 +65,14 @@ class FrameCheck:
         self,
         root: Path,
         frame: dict,
-        keypoints_body_m: np.ndarray | None,
+        points: TargetPoints,
         record_file: str,
         hashes: bool,
     ):
         self.root = Path(root)
         self.frame = frame
         self.index = frame.get("frame_index")
-        self.keypoints_body_m = keypoints_body_m
+        self.points = points
         self.record_file = record_file
         self.hashes = hashes
         self.findings = Findings()
@@ -69,7 +83,7 @@ class FrameCheck:
     # --- the whole frame ------------------------------------------------------------------
     def run(self) -> Findings:
         """Every check of the frame; returns the findings."""
-        points_cam = self.check_pose()
+        points_cam, keypoints_cam = self.check_pose()
         size = self.frame.get("image_size_px")
         shape = (int(size[1]), int(size[0])) if _is_size(size) else None
         if shape is None:
@@ -82,9 +96,11 @@ class FrameCheck:
             self.check_mask_counts(images["object_mask_png"] == 255, self.frame, mask_file, "masks")
         if points_cam is not None:
             self.check_pose_against_images(images, points_cam)
+        if keypoints_cam is not None:
+            self.check_keypoints_visible(images, keypoints_cam)
         crop = self.frame.get("crop")
         if crop is not None:
-            self.check_crop(crop, images, points_cam)
+            self.check_crop(crop, images, points_cam, keypoints_cam)
         self.check_checksum_entries()
         return self.findings
 
@@ -122,11 +138,11 @@ class FrameCheck:
             )
 
     # --- pose -----------------------------------------------------------------------------
-    def check_pose(self) -> np.ndarray | None:
+    def check_pose(self) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Unit quaternion, qw >= 0, keypoints, their depths and the range from the pose.
 
-        Returns the keypoints in the camera frame (N, 3), metres, or None when the pose
-        cannot be read.
+        Returns the box's corners and centre and the keypoints in the camera frame ((9, 3),
+        (N, 3), metres), each None when the pose or the points cannot be read.
         """
         self.findings.ran("pose")
         try:
@@ -139,7 +155,7 @@ class FrameCheck:
                 f"expected q_cam_from_body, t_cam_from_body_m and K, found "
                 f"an unreadable pose ({error!r})",
             )
-            return None
+            return None, None
         if (
             q.shape != (4,)
             or t.shape != (3,)
@@ -151,14 +167,14 @@ class FrameCheck:
                 f"expected a finite quaternion (4), translation (3) and K "
                 f"(3x3), found shapes {q.shape}, {t.shape}, {K.shape}",
             )
-            return None
+            return None, None
         norm = float(np.linalg.norm(q))
         if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
             self.problem("pose", f"expected a unit q_cam_from_body, found norm {norm:.12g}")
         if q[0] < 0:
             self.problem("pose", f"expected q_cam_from_body with qw >= 0, found qw = {q[0]:g}")
         if norm == 0:
-            return None
+            return None, None
         range_m = self.frame.get("range_m")
         if range_m is not None and not _close(range_m, float(np.linalg.norm(t)), FLOAT64_RTOL):
             self.problem(
@@ -166,18 +182,56 @@ class FrameCheck:
                 f"expected range_m = |t_cam_from_body_m| = "
                 f"{np.linalg.norm(t):.9g}, found {range_m}",
             )
-        if self.keypoints_body_m is None:
+        R = matrix_from_quaternion(q)
+        keypoints_cam = self.check_point_labels(self.points.keypoints_body_m, R, t, K, "keypoints")
+        if self.points.box_is_keypoints:
+            return keypoints_cam, keypoints_cam
+        box_cam = self.check_point_labels(
+            self.points.box_keypoints_body_m, R, t, K, "box_keypoints"
+        )
+        return box_cam, keypoints_cam
+
+    def check_point_labels(
+        self,
+        points_body_m: np.ndarray | None,
+        R: np.ndarray,
+        t: np.ndarray,
+        K: np.ndarray,
+        name: str,
+    ) -> np.ndarray | None:
+        """``{name}_px`` and ``{name}_depth_m`` against the points under the pose; returns
+        the points in the camera frame (None without points)."""
+        if points_body_m is None:
             return None
-        points_cam = self.keypoints_body_m @ matrix_from_quaternion(q).T + t
-        self.check_keypoints(self.frame.get("keypoints_px"), points_cam, K, "pose", "keypoints_px")
-        depths = self.frame.get("keypoints_depth_m")
+        points_cam = points_body_m @ R.T + t
+        self.check_keypoints(self.frame.get(f"{name}_px"), points_cam, K, "pose", f"{name}_px")
+        depths = self.frame.get(f"{name}_depth_m")
         if depths is not None and not _close_list(depths, points_cam[:, 2], FLOAT64_RTOL):
             self.problem(
                 "pose",
-                "expected keypoints_depth_m equal to the keypoints' z under "
+                f"expected {name}_depth_m equal to the points' z under "
                 f"the pose, {_fmt(points_cam[:, 2])}, found {_fmt(depths)}",
             )
         return points_cam
+
+    def check_keypoints_visible(self, images: dict, keypoints_cam: np.ndarray) -> None:
+        """keypoints_visible as the depth image decides it (when both are there)."""
+        labelled, depth = self.frame.get("keypoints_visible"), images.get("depth_exr")
+        if labelled is None or depth is None:
+            return
+        K = np.array(self.frame["K"], dtype=np.float64)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uvw = keypoints_cam @ K.T
+            uv = np.where(uvw[:, 2:] > 0, uvw[:, :2] / uvw[:, 2:], np.nan)
+        expected = keypoints_visible(uv, keypoints_cam[:, 2], depth).tolist()
+        if labelled != expected:
+            wrong = [i for i, (a, b) in enumerate(zip(labelled, expected, strict=False)) if a != b]
+            self.problem(
+                "pose",
+                f"expected keypoints_visible {expected} (the keypoints against the depth "
+                f"image), found {labelled} (differs at {wrong})",
+                (self.frame.get("files") or {}).get("depth_exr"),
+            )
 
     def check_keypoints(
         self, labelled, points_cam: np.ndarray, K: np.ndarray, check: str, name: str
@@ -337,7 +391,13 @@ class FrameCheck:
                 )
 
     # --- crop -----------------------------------------------------------------------------
-    def check_crop(self, crop: dict, images: dict, points_cam: np.ndarray | None) -> None:
+    def check_crop(
+        self,
+        crop: dict,
+        images: dict,
+        points_cam: np.ndarray | None,
+        keypoints_cam: np.ndarray | None = None,
+    ) -> None:
         """Crop K, size and keypoints from the full frame's; crop images against its labels."""
         self.findings.ran("crop")
         try:
@@ -366,10 +426,9 @@ class FrameCheck:
                 f"expected crop K = K shifted by the box origin ({x0}, {y0}), "
                 f"{shifted.tolist()}, found {crop['K']}",
             )
-        if points_cam is not None:
-            self.check_keypoints(
-                crop.get("keypoints_px"), points_cam, shifted, "crop", "crop keypoints_px"
-            )
+        for name, points in (("keypoints_px", keypoints_cam), ("box_keypoints_px", points_cam)):
+            if points is not None and (name in crop or not self.points.box_is_keypoints):
+                self.check_keypoints(crop.get(name), points, shifted, "crop", f"crop {name}")
         files = crop.get("files") or {}
         crop_images = self.read_files(files, (y1 - y0, x1 - x0))
         self.check_images(crop_images, crop, files, "crop")

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from satsight.dataset.frame_checks import FrameCheck
+from satsight.dataset.frame_checks import FrameCheck, TargetPoints
 from satsight.dataset.journal import JOURNAL_NAME, file_checksum, iter_journal
 from satsight.dataset.labels_stream import LabelsStream, LabelsStreamError
 from satsight.dataset.problems import CHECKS, Findings
@@ -257,7 +257,7 @@ class _RecordChecks:
         manifest: dict,
         complete: bool,
         record_file: str,
-        keypoints: np.ndarray | None,
+        keypoints: TargetPoints,
         hashes: bool,
         threads: int,
         on_frame_done: ProgressCallback | None,
@@ -605,19 +605,28 @@ def _committed_count(root: Path, frame_count, findings: Findings) -> int:
     return seen.count(1) + len(others)
 
 
-def _keypoints_body_m(manifest: dict, findings: Findings) -> np.ndarray | None:
+def _points(manifest: dict, key: str, findings: Findings) -> np.ndarray | None:
     try:
-        points = np.array(manifest["target"]["keypoints_body_m"], dtype=np.float64)
+        points = np.array(manifest["target"][key], dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 3:
             raise ValueError(f"shape {points.shape}")
         return points
     except (KeyError, TypeError, ValueError) as error:
         findings.add(
             "pose",
-            f"expected target.keypoints_body_m (N x 3), found {error!r}; keypoints not checked",
+            f"expected target.{key} (N x 3), found {error!r}; its labels not checked",
             file=MANIFEST_NAME,
         )
         return None
+
+
+def _target_points(manifest: dict, findings: Findings) -> TargetPoints:
+    """The manifest's keypoints and box points; a dataset without box_keypoints_body_m
+    (written before it existed) labelled the box as its keypoints."""
+    keypoints = _points(manifest, "keypoints_body_m", findings)
+    if "box_keypoints_body_m" not in (manifest.get("target") or {}):
+        return TargetPoints(keypoints, keypoints, box_is_keypoints=True)
+    return TargetPoints(keypoints, _points(manifest, "box_keypoints_body_m", findings))
 
 
 def validate_dataset(
@@ -661,7 +670,7 @@ def validate_dataset(
         return ValidationReport(root, False, frame_count, 0, head)
     count = len(expected_indices(manifest, frame_count)) if _is_count(frame_count) else None
     keypoint_findings = Findings()
-    keypoints = _keypoints_body_m(manifest, keypoint_findings)
+    keypoints = _target_points(manifest, keypoint_findings)
     threads = workers or min(4, os.cpu_count() or 1)
 
     def record_checks(record_file: str, total: int) -> _RecordChecks:

@@ -140,7 +140,7 @@ class TargetMesh:
         return float(np.linalg.norm(self.vertices_m - self.center_m, axis=1).max())
 
     @property
-    def keypoints_body_m(self) -> np.ndarray:
+    def box_keypoints_body_m(self) -> np.ndarray:
         """The 8 bounding-box corners then the box centre, (9, 3), body frame.
 
         Corner k has x from bit 0, y from bit 1, z from bit 2 of k (0: min, 1: max).
