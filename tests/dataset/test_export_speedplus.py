@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from scipy.io import loadmat
 
 from export_datasets import (
     SIZE_PX,
@@ -204,3 +205,13 @@ def test_rendered_dataset_projects_through_speedplus(tmp_path: Path) -> None:
         q, r = entry["q_vbs2tango_true"], entry["r_Vo2To_vbs_true"]
         uv = speedplus_project(q, r, camera, vertices)
         np.testing.assert_allclose(uv, satsight_project(record, vertices) + 0.5, atol=1e-6)
+        # The body keypoints, read as the SPEED+ baseline reads them (loadmat, transposed),
+        # land on the frame's keypoints_px half a pixel on.
+        tango = loadmat(tmp_path / "out" / "tangoPoints.mat")["tango3Dpoints"].T
+        uv = speedplus_project(q, r, camera, tango)
+        np.testing.assert_allclose(uv, np.array(record["keypoints_px"]) + 0.5, atol=1e-6)
+    assert tango.shape == (11, 3)  # surface keypoints, the default
+    document = json.loads((tmp_path / "out" / "keypoints.json").read_text())
+    assert np.array_equal(document["keypoints_body_m"], tango)
+    assert document["keypoints_body_m"] == labels["target"]["keypoints_body_m"]
+    assert document["method"]["method"] == "surface"

@@ -3,6 +3,8 @@
 Layout written::
 
     OUT/camera.json                 cameraMatrix, distCoeffs, Nu, Nv, ppx, ppy, fx, fy, ccx, ccy
+    OUT/tangoPoints.mat             tango3Dpoints: the body keypoints, (3, N) metres
+    OUT/keypoints.json              the same points as JSON, with how they were chosen
     OUT/DOMAIN/images/imgNNNNNN.png grey images (``images.py``), NNNNNN = frame_index + 1
     OUT/DOMAIN/train.json, validation.json, test.json
                                     [{filename, q_vbs2tango_true, r_Vo2To_vbs_true}, ...]
@@ -33,6 +35,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from scipy.io import savemat
 
 from satsight.dataset.export.images import ExportImages
 from satsight.dataset.export.json_entries import JsonEntries
@@ -46,6 +49,9 @@ PIXEL_OFFSET_PX = 0.5
 #: SPEED+'s label file of each satsight split.
 LABEL_FILES = {"train": "train.json", "val": "validation.json", "test": "test.json"}
 DEFAULT_DOMAIN = "synthetic"
+KEYPOINTS_MAT = "tangoPoints.mat"
+KEYPOINTS_MAT_KEY = "tango3Dpoints"
+KEYPOINTS_JSON = "keypoints.json"
 _PURPOSE = "the SPEED+ export"
 
 
@@ -147,6 +153,7 @@ def write_speedplus(
         for frame in split:  # fail before writing anything large
             images.require(frame, _PURPOSE)
     (root / "camera.json").write_text(json_text(camera_json(dataset, K, size)), encoding="utf-8")
+    notes = write_keypoints(dataset.header, root)
     folder = root / domain / "images"
     folder.mkdir(parents=True)
     for name, split_frames in splits.items():
@@ -157,4 +164,30 @@ def write_speedplus(
                 target = folder / image_name(frame.frame_index)
                 images.write(frame, frame.camera_mode, target, _PURPOSE)
                 labels.append(label_entry(frame))
-    return [images.note(), "principal point shifted +0.5 px (SPEED+ pixel origin)"]
+    return [images.note(), "principal point shifted +0.5 px (SPEED+ pixel origin)", *notes]
+
+
+def write_keypoints(header: dict, root: Path) -> list[str]:
+    """The target's body keypoints as the SPEED+ baseline reads them: ``tangoPoints.mat``
+    holding ``tango3Dpoints``, (3, N) float64, metres, body frame (tpark94/speedplusbaseline
+    loads ``loadmat(...)['tango3Dpoints']`` and transposes it to (N, 3)), and
+    ``keypoints.json``. Returns notes for the summary (none when the manifest has no
+    keypoints)."""
+    target = header.get("target") or {}
+    try:
+        points = np.array(target["keypoints_body_m"], dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
+            raise ValueError
+    except (KeyError, TypeError, ValueError):
+        return ["no keypoints in the manifest: no tangoPoints.mat"]
+    savemat(root / KEYPOINTS_MAT, {KEYPOINTS_MAT_KEY: points.T})
+    method = target.get("keypoints") or {"method": "corners"}
+    document = {
+        "description": "the target's keypoints in its body frame (SPEED+'s 'tango' frame, "
+        "the frame q_vbs2tango_true and r_Vo2To_vbs_true place), metres; the same points as "
+        f"{KEYPOINTS_MAT} ({KEYPOINTS_MAT_KEY}, one column per point)",
+        "method": method,
+        "keypoints_body_m": points.tolist(),
+    }
+    (root / KEYPOINTS_JSON).write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+    return [f"{len(points)} body keypoints in {KEYPOINTS_MAT}"]
