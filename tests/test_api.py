@@ -331,3 +331,38 @@ def test_export_dataset_writes_the_split_asked_for(dataset, tmp_path: Path) -> N
     assert by_path.format == "speedplus" and by_path.split_sizes["val"] == 3
     with pytest.raises(satsight.SatsightError, match="sum"):
         satsight.export_dataset(dataset, tmp_path / "x", "bop", split=(0.5, 0.1, 0.1))
+
+
+def assert_close_tree(found, expected, where: str = "labels") -> None:
+    """Equal structure; numbers equal to 1e-9 relative (a pose through a quaternion and
+    back differs in the last bits), everything else exactly."""
+    if isinstance(expected, dict):
+        assert isinstance(found, dict) and found.keys() == expected.keys(), where
+        for key in expected:
+            assert_close_tree(found[key], expected[key], f"{where}.{key}")
+    elif isinstance(expected, list):
+        assert isinstance(found, list) and len(found) == len(expected), where
+        for k, (a, b) in enumerate(zip(found, expected, strict=True)):
+            assert_close_tree(a, b, f"{where}[{k}]")
+    elif isinstance(expected, float) and not isinstance(found, bool):
+        assert found == pytest.approx(expected, rel=1e-9, abs=1e-9), where
+    else:
+        assert found == expected, where
+
+
+def test_frames_given_as_poses_render_as_the_same_views(scenario, rendered) -> None:
+    """The poses of the view frames, given back as q_cam_from_body / t_cam_from_body_m,
+    render the same pixels and labels."""
+    poses = [
+        {"q_cam_from_body": f.labels["q_cam_from_body"],
+         "t_cam_from_body_m": f.labels["t_cam_from_body_m"]}
+        for f in rendered
+    ]  # fmt: skip
+    again = list(satsight.render_frames(satsight.override(scenario, {"frames": poses})))
+    for frame, view in zip(again, rendered, strict=True):
+        np.testing.assert_array_equal(frame.dn, view.dn)
+        np.testing.assert_array_equal(frame.object_mask, view.object_mask)
+        labels = {k: v for k, v in frame.labels.items() if k != "view"}
+        assert_close_tree(labels, {k: v for k, v in view.labels.items() if k != "view"})
+        assert frame.labels["view"] == {"azimuth_deg": 0.0, "elevation_deg": 0.0,
+                                        "roll_deg": 0.0, **poses[frame.index]}  # fmt: skip

@@ -479,7 +479,7 @@ class FrameEngine:
         if len(self.modes) > 1:
             record["camera_mode"] = frame.camera_mode
         if scenario.frames:
-            record["view"] = scenario.frames[plan_index].model_dump()
+            record["view"] = scenario.frames[plan_index].model_dump(exclude_none=True)
         record["plan"] = self.track.record(plan_index)
         record["sun_direction_body"] = frame.sun.direction_body.tolist()
         record["environment_sh_radiance_w_m2_sr"] = frame.light.sh_radiance_w_m2_sr.tolist()

@@ -224,6 +224,33 @@ def test_frame_build_converts_km_and_degrees() -> None:
     assert view.roll_rad == pytest.approx(math.pi / 4, abs=ATOL)
 
 
+Q_TURN = (math.cos(0.3), 0.0, math.sin(0.3), 0.0)  # 0.6 rad about y
+
+
+def test_frame_given_as_a_pose_is_that_pose() -> None:
+    frame = FrameConfig(q_cam_from_body=Q_TURN, t_cam_from_body_m=(1.0, -2.0, 3000.0))
+    pose = frame.cam_from_body(np.array([5.0, 5.0, 5.0]))  # the box centre plays no part
+    np.testing.assert_allclose(pose.q_a_from_b, Q_TURN, atol=ATOL)
+    np.testing.assert_allclose(pose.t_a_from_b_m, [1.0, -2.0, 3000.0], atol=ATOL)
+    scenario = parse_scenario(
+        _minimal(frames=[{"q_cam_from_body": list(Q_TURN), "t_cam_from_body_m": [0, 0, 900]}])
+    )
+    assert scenario.frames[0].t_cam_from_body_m == (0.0, 0.0, 900.0)
+
+
+@pytest.mark.parametrize(
+    ("frame", "says"),
+    [({"q_cam_from_body": [1, 0, 0, 0]}, "needs both"),
+     ({"q_cam_from_body": [1, 0, 0, 0], "t_cam_from_body_m": [0, 0, 9], "distance_km": 1},
+      "not both"),
+     ({"q_cam_from_body": [1, 0, 0, 0.1], "t_cam_from_body_m": [0, 0, 9]}, "unit quaternion"),
+     ({"q_cam_from_body": [1, 0, 0, 0], "t_cam_from_body_m": [0, 0, -9]}, "behind the camera"),
+     ({"azimuth_deg": 10}, "needs distance_km")],
+)  # fmt: skip
+def test_bad_pose_frames_are_refused(frame: dict, says: str) -> None:
+    assert says in _error_lines(_minimal(frames=[frame]))
+
+
 # --- light and render settings -----------------------------------------------------------------
 def test_sun_irradiance_comes_from_the_spectrum_over_the_band() -> None:
     """Defaults: ASTM E-490 over 450-900 nm at 1 AU (about 671.5 W m^-2); the 5778 K black

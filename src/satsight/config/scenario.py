@@ -48,6 +48,7 @@ from satsight.config.target import (  # noqa: F401 (re-exported: the scenario's 
 from satsight.config.yaml_safety import load_yaml_file
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
+from satsight.frames.rigid import RigidTransform
 from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, SPECTRA, band_irradiance_w_m2
 from satsight.poses.views import View, direction_from_angles
 from satsight.render.buffers import SunLight
@@ -218,21 +219,79 @@ class MoonConfig(_Strict):
         return self.distance_km * 1e3 * _direction(self.azimuth_deg, self.elevation_deg)
 
 
-class FrameConfig(_Strict):
-    """One viewpoint: camera direction and distance from the target, in the body frame."""
+#: How far from 1 a given q_cam_from_body's norm may be (it is then normalised).
+QUATERNION_NORM_TOLERANCE = 1e-6
 
-    distance_km: float = Field(gt=0, le=1000)
+
+class FrameConfig(_Strict):
+    """One viewpoint, in either of two forms.
+
+    A view: camera direction (azimuth, elevation) and distance from the target's
+    bounding-box centre in the body frame, and a roll about the boresight; the camera
+    looks at the box centre. Or a pose: ``q_cam_from_body`` (scalar-first, unit to 1e-6)
+    and ``t_cam_from_body_m`` with x_cam = R(q) x_body + t (OpenCV camera axes), for poses
+    from another tool.
+    """
+
+    distance_km: float | None = Field(default=None, gt=0, le=1000)
     azimuth_deg: float = 0.0
     elevation_deg: float = Field(default=0.0, ge=-90, le=90)
     roll_deg: float = 0.0
+    q_cam_from_body: tuple[float, float, float, float] | None = None
+    t_cam_from_body_m: tuple[float, float, float] | None = None
+
+    @model_validator(mode="after")
+    def _one_form(self) -> FrameConfig:
+        pose = (self.q_cam_from_body is not None, self.t_cam_from_body_m is not None)
+        if pose[0] != pose[1]:
+            raise ValueError("a pose needs both q_cam_from_body and t_cam_from_body_m")
+        if pose[0]:
+            if (
+                self.distance_km is not None
+                or self.azimuth_deg
+                or self.elevation_deg
+                or (self.roll_deg)
+            ):
+                raise ValueError(
+                    "give a view (distance_km, azimuth_deg, elevation_deg, roll_deg) or a "
+                    "pose (q_cam_from_body, t_cam_from_body_m), not both"
+                )
+            norm = math.sqrt(sum(v * v for v in self.q_cam_from_body))
+            if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+                raise ValueError(
+                    f"q_cam_from_body must be a unit quaternion [qw, qx, qy, qz], its norm is "
+                    f"{norm:.9g}"
+                )
+            if not all(math.isfinite(v) for v in self.t_cam_from_body_m):
+                raise ValueError("t_cam_from_body_m must be finite")
+            if self.t_cam_from_body_m[2] <= 0:
+                raise ValueError(
+                    "t_cam_from_body_m puts the body origin at or behind the camera (z <= 0); "
+                    "the camera frame is OpenCV's, +z along the boresight"
+                )
+        elif self.distance_km is None:
+            raise ValueError(
+                "a frame needs distance_km (a view) or q_cam_from_body and t_cam_from_body_m "
+                "(a pose)"
+            )
+        return self
 
     def build(self) -> View:
+        """The view (a frame given as a view only)."""
         return View(
             distance_m=self.distance_km * 1e3,
             azimuth_rad=math.radians(self.azimuth_deg),
             elevation_rad=math.radians(self.elevation_deg),
             roll_rad=math.radians(self.roll_deg),
         )
+
+    def cam_from_body(self, target_center_body_m: np.ndarray) -> RigidTransform:
+        """The camera pose of this frame (a view looks at ``target_center_body_m``)."""
+        if self.q_cam_from_body is not None:
+            return RigidTransform.from_quaternion(
+                np.array(self.q_cam_from_body), np.array(self.t_cam_from_body_m)
+            )
+        return self.build().cam_from_body(target_center_body_m)
 
 
 class RenderConfig(_Strict):

@@ -123,7 +123,7 @@ def frames_to_render(scenario: Scenario, track: PoseTrack) -> np.ndarray:
 
 def _views_track(scenario: Scenario, center: np.ndarray) -> PoseTrack:
     n = len(scenario.frames)
-    poses = [frame.build().cam_from_body(center) for frame in scenario.frames]
+    poses = [frame.cam_from_body(center) for frame in scenario.frames]
     R = np.stack([p.R_a_from_b for p in poses])
     sun_body = scenario.sun.build().direction_body
     sun_cam = R @ sun_body
