@@ -12,11 +12,17 @@ bop_toolkit's renderer computes depth in float32 (a relative error of order 1e-6
 few operations), so a kilometre-range export needs
 ``delta >= 2 * max depth_scale + 1e-6 * max distance``; the notes give the smallest value
 of the 1-2-5 series at or above that and 15 mm.
+
+Dataset name: bop_toolkit splits result file names (``METHOD_DATASET-SPLIT.csv``,
+bop_toolkit_lib/inout.py ``parse_result_filename``) at ``_`` and ``-``, so the name it
+knows the export by keeps only the folder name's letters and digits (``toolkit_name``),
+and the notes link the folder under that name.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from typing import Protocol
 
 TOOLKIT_NOTES = "BOP_TOOLKIT.md"
@@ -43,6 +49,22 @@ def nice_ceil(value: float) -> float:
     raise AssertionError("unreachable")  # pragma: no cover
 
 
+#: A folder being written beside its final place (satsight.dataset.staging).
+_STAGING_NAME = re.compile(r"^\.(?P<name>.+)\.partial-[^.]*$")
+
+
+def final_folder_name(folder_name: str) -> str:
+    """The export folder's final name, also when given the folder it is staged in."""
+    staged = _STAGING_NAME.match(folder_name)
+    return staged.group("name") if staged else folder_name
+
+
+def toolkit_name(folder_name: str) -> str:
+    """The dataset name for bop_toolkit: the export folder's final name, its letters and
+    digits only, lower case."""
+    return re.sub(r"[^a-z0-9]", "", final_folder_name(folder_name).lower()) or "satsight"
+
+
 def visibility_delta_mm(max_depth_scale_mm: float, max_distance_mm: float) -> float:
     """The visibility tolerance (mm) that fits an export's depth quantum and range."""
     needed = 2.0 * max_depth_scale_mm + FLOAT32_DEPTH_RTOL * max_distance_mm
@@ -60,28 +82,40 @@ def toolkit_notes(
 ) -> str:
     """The Markdown of ``BOP_TOOLKIT.md`` for one export.
 
-    name: the export folder's name (the dataset name bop_toolkit will know it by).
+    name: the export folder's name (that of its staging folder will do); bop_toolkit knows
+    the export by ``toolkit_name(name)``.
     camera: the export's camera.json. model_info: object 1's models_info.json entry.
     written: the images written (count, largest depth_scale, distance range in mm).
     splits: the split folders written. with_depth: whether depth/ was written.
     with_targets: whether test_targets_bop19.json / bop24.json were written.
     """
     delta = visibility_delta_mm(written.max_depth_scale_mm, written.max_distance_mm)
+    folder = final_folder_name(name)
+    name = toolkit_name(folder)
     scene_ids = ", ".join(
         f'"{split}": {[0] if split in splits else []}' for split in ("train", "val", "test")
     )
     modalities = '["gray", "depth"]' if with_depth else '["gray"]'
     near = written.min_distance_mm if math.isfinite(written.min_distance_mm) else 0.0
+    place = (
+        f"1. Put (or link) this folder at `$BOP_PATH/{name}`; the folder name is the"
+        if folder == name
+        else f"1. Link this folder (`{folder}`) as `$BOP_PATH/{name}`, from inside it:\n"
+        f'   `ln -s "$PWD" "$BOP_PATH/{name}"`. The folder name is the'
+    )
     lines = [
         f"# Using this export with bop_toolkit ({name})",
         "",
         "bop_toolkit (github.com/thodan/bop_toolkit) finds datasets by name under its",
         "`BOP_PATH`. Steps, with this export's numbers:",
         "",
-        f"1. Put (or link) this folder at `$BOP_PATH/{name}`; the folder name is the",
-        "   dataset name.",
+        place,
+        "   dataset name; it must hold letters and digits only (result files are named",
+        "   `METHOD_DATASET-SPLIT.csv` and split at `_` and `-`) and must not be one of",
+        "   bop_toolkit's own datasets.",
         "2. In `bop_toolkit_lib/dataset_params.py`, `get_model_params`: add",
-        f'   `"{name}": [1],` to `obj_ids` and `"{name}": [],` to `symmetric_obj_ids`.',
+        f'   `"{name}": [1],` as the first entry of `obj_ids` and `"{name}": [],` as the',
+        "   first entry of `symmetric_obj_ids` (their last entries have no trailing comma).",
         "3. In the same file, `get_split_params`: add a branch before the final `else`:",
         "",
         "   ```python",
@@ -92,11 +126,30 @@ def toolkit_notes(
         f'           p["depth_range"] = ({near:.1f}, {written.max_distance_mm:.1f})',
         "   ```",
         "",
-        "4. In `scripts/eval_bop19_pose.py` (`vsd_deltas`) and `scripts/eval_calc_errors.py`",
-        f'   (`vsd_deltas`), add `"{name}": {delta:g},`.',
-        f"5. Run the toolkit's scripts with `--datasets {name}` (or `--dataset {name}`) and,",
-        "   for the renderer, `--renderer_type vispy` (with `PYOPENGL_PLATFORM=egl` on a",
-        "   machine without a screen).",
+        "4. In `scripts/eval_bop19_pose.py` (`vsd_deltas`: the one it passes on) and",
+        "   `scripts/eval_calc_errors.py` (`vsd_deltas`, for running it alone), add",
+        f'   `"{name}": {delta:g},`. To recompute scene_gt_info.json (it is rewritten in',
+        f'   place) with `scripts/calc_gt_info.py`, set its `p["dataset"] = "{name}"`,',
+        f'   `p["delta"] = {delta:g}`, `p["modality"] = None` and `p["sensor"] = None` (its',
+        '   defaults "rgb" and "realsense" are for multi-sensor datasets: KeyError here).',
+        "5. Run the toolkit's scripts from its folder with its Python environment first on",
+        "   `PATH` (the evaluation scripts start `python` subprocesses), `BOP_PATH`,",
+        f"   `BOP_RESULTS_PATH` and `BOP_EVAL_PATH` set, `--dataset {name}` (or `--datasets`)",
+        "   and `--renderer_type vispy`; without a screen, with Mesa's EGL:",
+        "   `PYOPENGL_PLATFORM=egl EGL_PLATFORM=surfaceless`.",
+    ]
+    if with_targets:
+        lines += [
+            "   The ground truth as a result file, and its evaluation (recall 1.0):",
+            "",
+            "   ```sh",
+            f"   python scripts/create_pose_results_file_from_gt.py --dataset {name} \\",
+            "       --targets_filename test_targets_bop19.json",
+            "   python scripts/eval_bop19_pose.py --renderer_type vispy --num_workers 2 \\",
+            f"       --result_filenames gt-results_{name}-test_pose.csv",
+            "   ```",
+        ]
+    lines += [
         "",
         "## The numbers",
         "",
