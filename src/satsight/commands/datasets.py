@@ -244,9 +244,10 @@ def stats(dataset: Path, out_dir: Path | None) -> None:
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(["bop", "speedplus"]),
+    type=click.Choice(["bop", "speedplus", "coco"]),
     required=True,
-    help="bop: BOP scene-wise layout; speedplus: the SPEED+ layout",
+    help="bop: BOP scene-wise layout; speedplus: the SPEED+ layout; coco: COCO instances "
+    "(boxes, RLE masks, keypoints)",
 )
 @click.option(
     "--out", "out_dir", type=click.Path(path_type=Path), required=True, help="export folder"
@@ -300,7 +301,7 @@ def export(
     white_dn: float | None,
     overwrite: bool,
 ) -> None:
-    """Export DATASET to the BOP or SPEED+ format with a seeded train/val/test split.
+    """Export DATASET to the BOP, SPEED+ or COCO format with a seeded train/val/test split.
 
     The images are the detector's DN, linearly scaled (--image); satsight_export.json
     in the export says how to turn them back into DN."""

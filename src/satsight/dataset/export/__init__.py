@@ -1,4 +1,4 @@
-"""Export a satsight dataset to other pose-estimation formats: BOP and SPEED+.
+"""Export a satsight dataset to other pose-estimation formats: BOP, SPEED+ and COCO.
 
 ``export_dataset`` opens a complete dataset, splits its frames into train / val / test
 (``splits.py``), writes the chosen format into a hidden folder beside ``out_dir`` and moves
@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from satsight.dataset.export.bop import write_bop
+from satsight.dataset.export.coco import write_coco
 from satsight.dataset.export.images import DEFAULT_IMAGE_MODE, ExportImages
 from satsight.dataset.export.source import ExportFrames, scan_frames
 from satsight.dataset.export.speedplus import DEFAULT_DOMAIN, write_speedplus
@@ -27,9 +28,9 @@ from satsight.dataset.reader import open_dataset
 from satsight.dataset.staging import check_output_folder, staged_folder
 from satsight.errors import SatsightError
 
-FORMATS = ("bop", "speedplus")
+FORMATS = ("bop", "speedplus", "coco")
 EXPORT_RECORD = "satsight_export.json"
-_FORMAT_TITLES = {"bop": "BOP", "speedplus": "SPEED+"}
+_FORMAT_TITLES = {"bop": "BOP", "speedplus": "SPEED+", "coco": "COCO"}
 _DOMAIN = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
 
@@ -110,6 +111,8 @@ def export_dataset(
     with staged_folder(out_dir, overwrite) as root:
         if fmt == "bop":
             notes = write_bop(dataset, splits, root, images)
+        elif fmt == "coco":
+            notes = write_coco(dataset, splits, root, images)
         else:
             notes = write_speedplus(dataset, splits, root, domain, images)
         record = {

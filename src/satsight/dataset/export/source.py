@@ -39,6 +39,10 @@ class ExportFrame:
     K: (3, 3) intrinsics of this view, pixels. size_px: (W, H). files: file key ->
     absolute path of this view's files. crop: whether this view is the frame's crop.
     camera_mode: the camera that took it (``primary``, or ``far`` beyond the switch range).
+    keypoints_px: (N, 2) the target's keypoints in this view's pixels (NaN at or behind
+    the camera), or None when the record has none. keypoints_visible: (N,) bool, this
+    view's flags, or None when the record has none. keypoints_depth_m: (N,) depth along
+    +z_cam (metres; the same for a crop), or None.
     """
 
     frame_index: int
@@ -49,6 +53,9 @@ class ExportFrame:
     files: dict[str, Path]
     crop: bool
     camera_mode: str = "primary"
+    keypoints_px: np.ndarray | None = None
+    keypoints_visible: np.ndarray | None = None
+    keypoints_depth_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -153,7 +160,22 @@ def export_frame(dataset: Dataset, record: dict, crop: bool) -> ExportFrame:
         files=files,
         crop=crop,
         camera_mode=str(record.get("camera_mode", "primary")),
+        keypoints_px=_points_px(view.get("keypoints_px")),
+        keypoints_visible=None
+        if view.get("keypoints_visible") is None
+        else np.asarray(view["keypoints_visible"], dtype=bool),
+        keypoints_depth_m=None
+        if record.get("keypoints_depth_m") is None
+        else np.asarray(record["keypoints_depth_m"], dtype=np.float64),
     )
+
+
+def _points_px(points: list | None) -> np.ndarray | None:
+    """(N, 2) pixel positions of a record's list (null: NaN), or None without a list."""
+    if points is None:
+        return None
+    rows = [(np.nan, np.nan) if p is None else p for p in points]
+    return np.asarray(rows, dtype=np.float64).reshape(len(rows), 2)
 
 
 def require_file(frame: ExportFrame, key: str, purpose: str) -> Path:
