@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+import textwrap
 import tracemalloc
 from pathlib import Path
 
@@ -253,6 +254,29 @@ def test_depth_recovers_metres_within_the_quantum_at_50_km(bop: Path, labels: di
 def test_depth_scale_is_the_smallest_nice_value_that_fits(max_mm: float, scale: float) -> None:
     assert depth_scale_for(max_mm) == scale
     assert max_mm / scale < 65535
+
+
+def test_toolkit_notes_register_the_export_with_its_own_numbers(box: Path, tmp_path) -> None:
+    """BOP_TOOLKIT.md names the export as bop_toolkit can parse it (letters and digits of
+    the final folder name), and its get_split_params branch runs and sets the export's
+    values; the delta fits the 1 m depth steps at 50 km."""
+    out = tmp_path / "Sat_export-2"
+    export_dataset(box, out, "bop", RULE)
+    notes = (out / "BOP_TOOLKIT.md").read_text()
+    assert "partial" not in notes and "`$BOP_PATH/satexport2`" in notes
+    snippet = re.search(r"```python\n(.*?)```", notes, re.S).group(1)
+    branch = "if False:\n    pass\n" + textwrap.dedent(snippet)
+    camera = load_json(out / "camera.json")
+    for split, ids in (("train", [0]), ("val", [0]), ("test", [0])):
+        p: dict = {}
+        exec(branch, {}, {"p": p, "dataset_name": "satexport2", "split": split})
+        assert p["scene_ids"] == ids
+        assert p["im_size"] == (camera["width"], camera["height"])
+        assert p["im_modalities"] == ["gray", "depth"]
+        near_mm, far_mm = p["depth_range"]
+        assert 3.9e6 < near_mm < far_mm < 5.01e7
+    # Largest depth_scale 1000 mm (50 km): 2 x 1000 + 1e-6 x 5e7 = 2050 -> 5000 mm.
+    assert '"satexport2": 5000,' in notes and 'p["delta"] = 5000' in notes
 
 
 # --- the model --------------------------------------------------------------------------

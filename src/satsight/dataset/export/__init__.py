@@ -110,7 +110,7 @@ def export_dataset(
     }
     with staged_folder(out_dir, overwrite) as root:
         if fmt == "bop":
-            notes = write_bop(dataset, splits, root, images)
+            notes = write_bop(dataset, splits, root, images, out_dir.name)
         elif fmt == "coco":
             notes = write_coco(dataset, splits, root, images)
         else:

@@ -334,9 +334,14 @@ def write_targets(root: Path, im_ids: array) -> None:
 
 
 def write_bop(
-    dataset: Dataset, splits: dict[str, ExportFrames], root: Path, images: ExportImages
+    dataset: Dataset,
+    splits: dict[str, ExportFrames],
+    root: Path,
+    images: ExportImages,
+    export_name: str,
 ) -> list[str]:
     """Write the BOP export of ``splits`` (name -> frames) into ``root``; returns notes.
+    export_name: the export folder's final name (``root`` may be where it is staged).
 
     Three passes over the frames: which have depth, what each needs (checked before
     anything large is written), then the images and JSON files, split by split.
@@ -372,7 +377,7 @@ def write_bop(
     if targets:
         write_targets(root, targets)
     (root / TOOLKIT_NOTES).write_text(
-        toolkit_notes(root.name, camera, info_entry, totals, written, with_depth, bool(targets)),
+        toolkit_notes(export_name, camera, info_entry, totals, written, with_depth, bool(targets)),
         encoding="utf-8",
     )
     depth = "depth: 16-bit PNG, per-image depth_scale" if with_depth else "no depth"

@@ -49,20 +49,10 @@ def nice_ceil(value: float) -> float:
     raise AssertionError("unreachable")  # pragma: no cover
 
 
-#: A folder being written beside its final place (satsight.dataset.staging).
-_STAGING_NAME = re.compile(r"^\.(?P<name>.+)\.partial-[^.]*$")
-
-
-def final_folder_name(folder_name: str) -> str:
-    """The export folder's final name, also when given the folder it is staged in."""
-    staged = _STAGING_NAME.match(folder_name)
-    return staged.group("name") if staged else folder_name
-
-
 def toolkit_name(folder_name: str) -> str:
     """The dataset name for bop_toolkit: the export folder's final name, its letters and
     digits only, lower case."""
-    return re.sub(r"[^a-z0-9]", "", final_folder_name(folder_name).lower()) or "satsight"
+    return re.sub(r"[^a-z0-9]", "", folder_name.lower()) or "satsight"
 
 
 def visibility_delta_mm(max_depth_scale_mm: float, max_distance_mm: float) -> float:
@@ -82,15 +72,14 @@ def toolkit_notes(
 ) -> str:
     """The Markdown of ``BOP_TOOLKIT.md`` for one export.
 
-    name: the export folder's name (that of its staging folder will do); bop_toolkit knows
-    the export by ``toolkit_name(name)``.
+    name: the export folder's name; bop_toolkit knows the export by ``toolkit_name(name)``.
     camera: the export's camera.json. model_info: object 1's models_info.json entry.
     written: the images written (count, largest depth_scale, distance range in mm).
     splits: the split folders written. with_depth: whether depth/ was written.
     with_targets: whether test_targets_bop19.json / bop24.json were written.
     """
     delta = visibility_delta_mm(written.max_depth_scale_mm, written.max_distance_mm)
-    folder = final_folder_name(name)
+    folder = name
     name = toolkit_name(folder)
     scene_ids = ", ".join(
         f'"{split}": {[0] if split in splits else []}' for split in ("train", "val", "test")
