@@ -18,12 +18,24 @@ acceleration in km/s^2) in one or more segments, each with a metadata block:
   the velocity is its derivative. Some tools read the degree as "number of states - 1"
   for Hermite as well; with states every few tens of seconds both are far below a metre.
 * ``USEABLE_START_TIME`` / ``USEABLE_STOP_TIME`` (default the segment's ``START_TIME`` /
-  ``STOP_TIME``) bound where a segment is used; a time outside every segment is refused.
-  Where segments overlap, the first one listed that holds the time is used.
+  ``STOP_TIME``) bound where a segment is used, and so do its first and last states: a
+  time is never extrapolated, even where ``START_TIME`` precedes the first state (such a
+  file is logged as a warning). A time outside every segment is refused with the spans
+  that are held. Where segments overlap, the first one listed that holds the time is used.
+* Gaps: a step between two states longer than ``GAP_FACTOR`` (3) times the typical step
+  on both sides of it (the median of up to ``GAP_NEIGHBOURS`` (8) steps before it, and of
+  up to 8 after it) is a gap. The truncation error of a degree-n polynomial grows as
+  h^(n+1) with the node spacing h, so a window stretched over a gap of k steps can be
+  k^(n+1) times less accurate than the file's own step was chosen to be (3^8 = 6561 at
+  degree 7: a 40-minute hole in 60 s LEO states is kilometres). Interpolation windows
+  never reach across a gap (they are shifted to one side, as at a segment's end), and a
+  time inside a gap is refused with the gap's lines; gaps are logged when the file is read.
 
 Covariance blocks (``COVARIANCE_START`` ... ``COVARIANCE_STOP``) and ``COMMENT`` lines are
 skipped. The parser is strict: an unknown keyword, a data line with a wrong number of
-values, or epochs that do not increase are errors naming the line.
+values (or 9 values among lines of 6), an impossible date in any epoch field
+(``CREATION_DATE``, the metadata times, each state), or epochs that do not increase are
+errors naming the line.
 
 Internally epochs are elapsed seconds (TT) from the message's first epoch, kept as a whole
 TT Julian day plus a fraction so that sub-microsecond resolution survives.
@@ -31,10 +43,12 @@ TT Julian day plus a fraction so that sub-microsecond resolution survives.
 
 from __future__ import annotations
 
+import calendar
 import logging
 import math
 import re
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +63,10 @@ log = logging.getLogger(__name__)
 DEFAULT_INTERPOLATION = "LAGRANGE"
 DEFAULT_DEGREE = 7
 MAX_FILE_BYTES = 200_000_000
+# A step longer than GAP_FACTOR times the typical step on both sides of it (the median of
+# up to GAP_NEIGHBOURS steps on that side) is a gap that interpolation must not cross.
+GAP_FACTOR = 3.0
+GAP_NEIGHBOURS = 8
 
 _HEADER_KEYS = ("CCSDS_OEM_VERS", "CREATION_DATE", "ORIGINATOR", "MESSAGE_ID")
 _META_KEYS = (
@@ -104,27 +122,63 @@ def _times(time_system: str, fields: list[tuple[int, int, int, int, int, float]]
     return ts.tdb(y, mo, d, h, mi, s)
 
 
-def _epoch_fields(text: str, source: str, line_no: int) -> tuple[int, int, int, int, int, float]:
+def _epoch_fields(
+    text: str, source: str, line_no: int, keyword: str = "epoch"
+) -> tuple[int, int, int, int, int, float]:
+    """(year, month, day, hour, minute, second) of an OEM epoch, checked against the
+    calendar (month lengths, leap years); ``keyword`` names the field in messages."""
     m = _EPOCH_RE.match(text)
     if m is None:
         raise _error(
             source,
             line_no,
-            f"epoch {text!r} is not YYYY-MM-DDThh:mm:ss[.fff] or YYYY-DDDThh:mm:ss[.fff]",
+            f"{keyword} {text!r} is not YYYY-MM-DDThh:mm:ss[.fff] or YYYY-DDDThh:mm:ss[.fff]",
         )
     year = int(m["year"])
     if m["doy"] is not None:
         month, day = 1, int(m["doy"])  # skyfield carries day-of-year past January
-        if not 1 <= day <= 366:
-            raise _error(source, line_no, f"epoch {text!r}: day of year {day} outside 1-366")
+        days_in_year = 366 if calendar.isleap(year) else 365
+        if not 1 <= day <= days_in_year:
+            raise _error(
+                source,
+                line_no,
+                f"{keyword} {text!r}: day of year {day} does not exist ({year} has "
+                f"{days_in_year} days); correct the date",
+            )
     else:
         month, day = int(m["month"]), int(m["day"])
-        if not (1 <= month <= 12 and 1 <= day <= 31):
-            raise _error(source, line_no, f"epoch {text!r}: month or day out of range")
+        if not 1 <= month <= 12:
+            raise _error(source, line_no, f"{keyword} {text!r}: month {month} does not exist")
+        days_in_month = calendar.monthrange(year, month)[1] if year >= 1 else 31
+        if not 1 <= day <= days_in_month:
+            raise _error(
+                source,
+                line_no,
+                f"{keyword} {text!r}: {year:04d}-{month:02d} has {days_in_month} days, so day "
+                f"{day} does not exist; correct the date",
+            )
     hour, minute, second = int(m["hour"]), int(m["minute"]), float(m["second"])
     if hour > 23 or minute > 59 or second >= 61.0:
-        raise _error(source, line_no, f"epoch {text!r}: time of day out of range")
+        raise _error(source, line_no, f"{keyword} {text!r}: time of day out of range")
     return year, month, day, hour, minute, second
+
+
+def _gaps(t_s: np.ndarray) -> np.ndarray:
+    """Indices i of the steps t_s[i] -> t_s[i + 1] that are gaps: longer than GAP_FACTOR
+    times the typical step on both sides (the median of up to GAP_NEIGHBOURS steps before
+    the step and of up to GAP_NEIGHBOURS after it; one side alone at a segment's end)."""
+    steps = np.diff(t_s)
+    if steps.size < 2:
+        return np.zeros(0, dtype=np.int64)
+    k = GAP_NEIGHBOURS
+    padded = np.concatenate([np.full(k, np.nan), steps, np.full(k, np.nan)])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * k + 1)  # centred on i
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN sides at the ends
+        before = np.nanmedian(windows[:, :k], axis=1)
+        after = np.nanmedian(windows[:, k + 1 :], axis=1)
+    typical = np.fmax(before, after)  # NaN only where both sides are empty (never here)
+    return np.flatnonzero(steps > GAP_FACTOR * typical)
 
 
 @dataclass(frozen=True)
@@ -134,6 +188,8 @@ class OemSegment:
     t_s (N,): TT seconds after the message reference epoch; r_m (N, 3), v_m_s (N, 3): GCRS
     position and velocity; a_m_s2 (N, 3) or None: acceleration as given (GCRS axes).
     start_s, stop_s, useable_start_s, useable_stop_s: the segment's bounds, same scale.
+    line_numbers (N,): the file line of each state; gap_after (G,): indices i of the steps
+    t_s[i] -> t_s[i + 1] that are gaps (module docstring), which interpolation never crosses.
     """
 
     metadata: dict[str, str]
@@ -147,18 +203,59 @@ class OemSegment:
     useable_stop_s: float
     interpolation: str
     degree: int
+    line_numbers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    gap_after: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def held_start_s(self) -> float:
+        """The first time the segment answers for: useable and not before its first state."""
+        return max(self.useable_start_s, float(self.t_s[0]))
+
+    @property
+    def held_stop_s(self) -> float:
+        """The last time the segment answers for: useable and not after its last state."""
+        return min(self.useable_stop_s, float(self.t_s[-1]))
+
+    def _pieces(self) -> list[tuple[int, int]]:
+        """[first, last] state indices of the runs of states between gaps."""
+        cuts = [int(i) for i in self.gap_after]
+        firsts = [0, *(i + 1 for i in cuts)]
+        lasts = [*cuts, len(self.t_s) - 1]
+        return list(zip(firsts, lasts, strict=True))
+
+    def in_gap(self, t_s: np.ndarray) -> np.ndarray:
+        """(M,) index of the gap step holding each time strictly inside it, or -1."""
+        where = np.full(len(t_s), -1, dtype=np.int64)
+        for i in self.gap_after:
+            inside = (t_s > self.t_s[i]) & (t_s < self.t_s[i + 1])
+            where[inside] = i
+        return where
 
     def holds(self, t_s: np.ndarray) -> np.ndarray:
-        return (t_s >= self.useable_start_s) & (t_s <= self.useable_stop_s)
+        """(M,) whether the segment interpolates each time: inside its useable span, its
+        states' span, and not inside a gap."""
+        inside = (t_s >= self.held_start_s) & (t_s <= self.held_stop_s)
+        return inside & (self.in_gap(t_s) < 0)
 
     def interpolate(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """GCRS position (M, 3), m, and velocity (M, 3), m/s, at t_s (M,) inside the segment."""
-        if self.interpolation == "HERMITE":
-            return _hermite(self.t_s, self.r_m, self.v_m_s, t_s, self.degree)
-        return (
-            _lagrange(self.t_s, self.r_m, t_s, self.degree),
-            _lagrange(self.t_s, self.v_m_s, t_s, self.degree),
-        )
+        """GCRS position (M, 3), m, and velocity (M, 3), m/s, at t_s (M,) that the segment
+        holds; each time uses only the states of its run between gaps."""
+        r = np.full((len(t_s), 3), np.nan)
+        v = np.full((len(t_s), 3), np.nan)
+        left = np.ones(len(t_s), dtype=bool)
+        for first, last in self._pieces():
+            here = left & (t_s >= self.t_s[first]) & (t_s <= self.t_s[last])
+            if not np.any(here):
+                continue
+            nodes = self.t_s[first : last + 1]
+            rs, vs = self.r_m[first : last + 1], self.v_m_s[first : last + 1]
+            if self.interpolation == "HERMITE":
+                r[here], v[here] = _hermite(nodes, rs, vs, t_s[here], self.degree)
+            else:
+                r[here] = _lagrange(nodes, rs, t_s[here], self.degree)
+                v[here] = _lagrange(nodes, vs, t_s[here], self.degree)
+            left &= ~here
+        return r, v
 
 
 def _window(nodes: np.ndarray, t_s: np.ndarray, count: int) -> np.ndarray:
@@ -249,8 +346,9 @@ class OemEphemeris:
 
     @property
     def useable_start(self) -> Time:
-        """The first instant the message may be used: its first segment's useable start."""
-        return self.time_at(min(s.useable_start_s for s in self.segments))
+        """The first instant the message may be used: the earliest time a segment holds
+        (inside its useable span and not before its first state)."""
+        return self.time_at(min(s.held_start_s for s in self.segments))
 
     @property
     def useable_start_utc(self) -> str:
@@ -272,17 +370,37 @@ class OemEphemeris:
                 left &= ~here
         if np.any(left):
             i = int(np.flatnonzero(left)[0])
+            when = format_epoch_utc(self.time_at(float(t[i])), 3)
+            for segment in self.segments:
+                gap = int(segment.in_gap(t[i : i + 1])[0])
+                inside = segment.held_start_s <= t[i] <= segment.held_stop_s
+                if gap >= 0 and inside:
+                    raise SatsightError(self._gap_message(segment, gap, when))
             spans = "; ".join(
-                f"{format_epoch_utc(self.time_at(s.useable_start_s), 3)} to "
-                f"{format_epoch_utc(self.time_at(s.useable_stop_s), 3)}"
+                f"{format_epoch_utc(self.time_at(s.held_start_s), 3)} to "
+                f"{format_epoch_utc(self.time_at(s.held_stop_s), 3)}"
                 for s in self.segments
             )
-            when = format_epoch_utc(self.time_at(float(t[i])), 3)
             raise SatsightError(
                 f"{self.source}: {when} (UTC) lies outside the ephemeris's useable span(s) "
-                f"{spans}; choose epoch_utc and the sampler's span inside them"
+                f"{spans} (inside USEABLE_START_TIME - USEABLE_STOP_TIME and between the "
+                "first and last states; never extrapolated); choose epoch_utc and the "
+                "sampler's span inside them"
             )
         return r, v
+
+    def _gap_message(self, segment: OemSegment, gap: int, when: str) -> str:
+        t0, t1 = float(segment.t_s[gap]), float(segment.t_s[gap + 1])
+        lines = segment.line_numbers
+        return (
+            f"{self.source}: {when} (UTC) falls in a {t1 - t0:g} s gap between the states of "
+            f"lines {int(lines[gap])} and {int(lines[gap + 1])} "
+            f"({format_epoch_utc(self.time_at(t0), 3)} to {format_epoch_utc(self.time_at(t1), 3)}"
+            f"), more than {GAP_FACTOR:g} times the typical step around it; interpolating "
+            "across it would be far less accurate than the file's own step (the error grows "
+            "as the step to the power degree + 1); choose epoch_utc and the sampler's span "
+            "outside the gap, or supply the missing states"
+        )
 
     def first_state_gcrs(self) -> tuple[np.ndarray, np.ndarray]:
         """The first state of the first segment, GCRS m and m/s."""
@@ -293,7 +411,9 @@ def parse_oem(text: str, source: str = "OEM") -> OemEphemeris:
     """Read the KVN text of an OEM (see the module docstring for what is accepted)."""
     lines = text.splitlines()
     header: dict[str, str] = {}
-    raw_segments: list[tuple[dict[str, str], list[tuple[int, list[str]]], int]] = []
+    keyword_lines: dict[str, int] = {}  # the line of each keyword of the current block
+    header_lines: dict[str, int] = keyword_lines
+    raw_segments: list[_RawSegment] = []
     state = "header"
     meta: dict[str, str] = {}
     data: list[tuple[int, list[str]]] = []
@@ -313,8 +433,9 @@ def parse_oem(text: str, source: str = "OEM") -> OemEphemeris:
                 if "CCSDS_OEM_VERS" not in header:
                     raise _error(source, no, "the header must start with CCSDS_OEM_VERS")
             else:
-                raw_segments.append((meta, data, meta_line))
+                raw_segments.append((meta, data, meta_line, keyword_lines))
             meta, data, meta_line, state = {}, [], no, "meta"
+            keyword_lines = {}
             continue
         if line == "META_STOP":
             if state != "meta":
@@ -344,6 +465,7 @@ def parse_oem(text: str, source: str = "OEM") -> OemEphemeris:
             if state == "header" and not header and key != "CCSDS_OEM_VERS":
                 raise _error(source, no, "the header must start with CCSDS_OEM_VERS")
             target[key] = value
+            keyword_lines[key] = no
             continue
         # A data line: epoch x y z vx vy vz [ax ay az].
         parts = line.split()
@@ -361,18 +483,38 @@ def parse_oem(text: str, source: str = "OEM") -> OemEphemeris:
         raise _error(source, None, "the last metadata block has no META_STOP")
     if state == "covariance":
         raise _error(source, None, "a covariance block has no COVARIANCE_STOP")
-    raw_segments.append((meta, data, meta_line))
+    raw_segments.append((meta, data, meta_line, keyword_lines))
+    if "CREATION_DATE" in header:
+        _epoch_fields(
+            header["CREATION_DATE"], source, header_lines["CREATION_DATE"], "CREATION_DATE"
+        )
     return _build(header, raw_segments, source)
 
 
-def _build(
-    header: dict[str, str],
-    raw_segments: list[tuple[dict[str, str], list[tuple[int, list[str]]], int]],
-    source: str,
-) -> OemEphemeris:
+# One segment as read: metadata, (line, fields) of its states, the META_START line, and
+# the line of each metadata keyword.
+_RawSegment = tuple[dict[str, str], list[tuple[int, list[str]]], int, dict[str, int]]
+
+
+def _check_value_counts(data: list[tuple[int, list[str]]], source: str) -> None:
+    """Every state line of a segment holds the same number of values (6, or 9 with
+    accelerations); else an error naming the first line that differs."""
+    first_no, first = data[0]
+    for no, parts in data:
+        if len(parts) != len(first):
+            raise _error(
+                source,
+                no,
+                f"this state line holds {len(parts) - 1} values but the segment's first state "
+                f"line (line {first_no}) holds {len(first) - 1}; within a segment every state "
+                "line gives 6 values (position, velocity) or every one 9 (with accelerations)",
+            )
+
+
+def _build(header: dict[str, str], raw_segments: list[_RawSegment], source: str) -> OemEphemeris:
     built = []
     reference: Time | None = None
-    for meta, data, meta_line in raw_segments:
+    for meta, data, meta_line, keyword_lines in raw_segments:
         if meta["CENTER_NAME"].upper() != "EARTH":
             raise _error(
                 source, meta_line, f"CENTER_NAME {meta['CENTER_NAME']!r}; only EARTH is accepted"
@@ -417,7 +559,14 @@ def _build(
         }
         bounds["USEABLE_START_TIME"] = bounds["USEABLE_START_TIME"] or bounds["START_TIME"]
         bounds["USEABLE_STOP_TIME"] = bounds["USEABLE_STOP_TIME"] or bounds["STOP_TIME"]
-        fields = [_epoch_fields(bounds[k], source, meta_line) for k in bounds]
+        if "REF_FRAME_EPOCH" in meta:
+            _epoch_fields(
+                meta["REF_FRAME_EPOCH"], source, keyword_lines["REF_FRAME_EPOCH"], "REF_FRAME_EPOCH"
+            )
+        # START_TIME and STOP_TIME come first: a default USEABLE_* is checked as them.
+        fields = [
+            _epoch_fields(bounds[k], source, keyword_lines.get(k, meta_line), k) for k in bounds
+        ]
         fields += [_epoch_fields(parts[0], source, no) for no, parts in data]
         times = _times(time_system, fields)
         if reference is None:
@@ -431,6 +580,7 @@ def _build(
         bad = np.flatnonzero(np.diff(t_s) <= 0)
         if bad.size:
             raise _error(source, data[int(bad[0]) + 1][0], "epochs must increase strictly")
+        _check_value_counts(data, source)
         try:
             values = np.array([[float(x) for x in parts[1:]] for _, parts in data])
         except ValueError:
@@ -442,7 +592,8 @@ def _build(
                         raise _error(source, no, f"{x!r} is not a number") from None
             raise
         if not np.all(np.isfinite(values)):
-            raise _error(source, meta_line, "a state holds a non-finite value")
+            row = int(np.flatnonzero(~np.all(np.isfinite(values), axis=1))[0])
+            raise _error(source, data[row][0], "a state holds a non-finite value")
         if start > stop or not start <= ustart <= ustop <= stop:
             raise _error(
                 source,
@@ -452,11 +603,26 @@ def _build(
         tolerance = 1e-6
         if t_s[0] < start - tolerance or t_s[-1] > stop + tolerance:
             raise _error(source, meta_line, "states lie outside START_TIME - STOP_TIME")
+        lines = np.array([no for no, _ in data], dtype=np.int64)
+        _check_held_span(source, meta, keyword_lines, meta_line, t_s, lines, ustart, ustop)
+        gaps = _gaps(t_s)
+        if gaps.size:
+            longest = int(gaps[np.argmax(np.diff(t_s)[gaps])])
+            log.warning(
+                "%s: %d gap(s) in the states of the segment at line %d (longest %g s, between "
+                "lines %d and %d), each more than %g times the typical step around it; times "
+                "inside a gap are refused",
+                source,
+                gaps.size,
+                meta_line,
+                float(t_s[longest + 1] - t_s[longest]),
+                int(lines[longest]),
+                int(lines[longest + 1]),
+                GAP_FACTOR,
+            )
         r = values[:, 0:3] * 1e3
         v = values[:, 3:6] * 1e3
         a = values[:, 6:9] * 1e3 if values.shape[1] == 9 else None
-        if len({len(parts) for _, parts in data}) > 1:
-            raise _error(source, meta_line, "mixed state lines with and without accelerations")
         if frame in _EME2000_FRAMES:
             r, v = gcrs_from_eme2000(r), gcrs_from_eme2000(v)
             a = None if a is None else gcrs_from_eme2000(a)
@@ -484,11 +650,61 @@ def _build(
                 useable_stop_s=ustop,
                 interpolation=interpolation,
                 degree=degree,
+                line_numbers=lines,
+                gap_after=gaps,
             )
         )
     return OemEphemeris(
         header=dict(header), segments=tuple(built), reference=reference, source=source
     )
+
+
+def _check_held_span(
+    source: str,
+    meta: dict[str, str],
+    keyword_lines: dict[str, int],
+    meta_line: int,
+    t_s: np.ndarray,
+    lines: np.ndarray,
+    ustart: float,
+    ustop: float,
+) -> None:
+    """Refuse a segment whose useable span holds none of its states' span; log one whose
+    useable span reaches beyond its first or last state (those times are refused, never
+    extrapolated)."""
+    tolerance = 1e-6
+    start_key = "USEABLE_START_TIME" if "USEABLE_START_TIME" in meta else "START_TIME"
+    stop_key = "USEABLE_STOP_TIME" if "USEABLE_STOP_TIME" in meta else "STOP_TIME"
+    if max(ustart, t_s[0]) > min(ustop, t_s[-1]):
+        raise _error(
+            source,
+            keyword_lines.get(start_key, meta_line),
+            f"{start_key} - {stop_key} ({meta[start_key]} to {meta[stop_key]}) holds none of "
+            f"the segment's states (lines {int(lines[0])} to {int(lines[-1])}); correct the "
+            "times or the states",
+        )
+    if ustart < t_s[0] - tolerance:
+        log.warning(
+            "%s, line %d: %s %s precedes the segment's first state (line %d, %g s later); "
+            "times before that state are refused, and a scenario without epoch_utc starts there",
+            source,
+            keyword_lines.get(start_key, meta_line),
+            start_key,
+            meta[start_key],
+            int(lines[0]),
+            float(t_s[0] - ustart),
+        )
+    if ustop > t_s[-1] + tolerance:
+        log.warning(
+            "%s, line %d: %s %s follows the segment's last state (line %d, %g s earlier); "
+            "times after that state are refused",
+            source,
+            keyword_lines.get(stop_key, meta_line),
+            stop_key,
+            meta[stop_key],
+            int(lines[-1]),
+            float(ustop - t_s[-1]),
+        )
 
 
 def read_oem(path: str | Path) -> OemEphemeris:
