@@ -47,7 +47,9 @@ def _unit_axes(r: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     h = np.cross(r, v)
     r_norm = np.linalg.norm(r, axis=-1, keepdims=True)
     h_norm = np.linalg.norm(h, axis=-1, keepdims=True)
-    if np.any(r_norm == 0.0) or np.any(h_norm <= 1e-12 * r_norm * np.linalg.norm(v, axis=-1)):
+    # keepdims on every norm: (N, 1) against (N,) would broadcast to (N, N).
+    v_norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    if np.any(r_norm == 0.0) or np.any(h_norm <= 1e-12 * r_norm * v_norm):
         raise SatsightError(
             "the orbital frame is undefined: r_m is zero or parallel to v_m_s (no orbit plane)"
         )
