@@ -24,11 +24,19 @@ Inputs:
   (``KEY = value`` lines), XML (the CCSDS NDM/XML layout), or the JSON and CSV flavours that
   CelesTrak serves (the same keywords as flat records). When present, ``CENTER_NAME`` must
   be ``EARTH``, ``REF_FRAME`` ``TEME``, ``TIME_SYSTEM`` ``UTC`` and ``MEAN_ELEMENT_THEORY``
-  ``SGP4`` (or ``SGP/SGP4``).
+  ``SGP4`` (or ``SGP/SGP4``). Values are checked before SGP4 sees them, naming the field
+  (and the line, for KVN): ``EPOCH`` must be a real calendar date and time of day;
+  ``NORAD_CAT_ID`` an integer 0-339999 (the Alpha-5 range SGP4 can store);
+  ``ECCENTRICITY`` in [0, 1); ``MEAN_MOTION`` > 0 rev/day; ``INCLINATION`` in [0, 180]
+  deg; every other number finite.
+
+A TLE's epoch day of year must exist in its year (1 to 366.999..., 365.999... outside
+leap years).
 """
 
 from __future__ import annotations
 
+import calendar
 import csv
 import io
 import json
@@ -242,6 +250,22 @@ def _check_tle_line(line: str, kind: int, source: str, line_no: int) -> str:
     return line
 
 
+def _check_tle_epoch(line1: str, source: str, line_no: int) -> None:
+    """Refuse an epoch day of year that does not exist in the epoch's year (columns 19-32;
+    two-digit years 57-99 are 1957-1999, 00-56 are 2000-2056, as in sgp4)."""
+    two_digit = int(line1[18:20])
+    year = two_digit + (1900 if two_digit >= 57 else 2000)
+    day = float(line1[20:32])
+    days_in_year = 366 if calendar.isleap(year) else 365
+    if not 1.0 <= day < days_in_year + 1.0:
+        raise _tle_error(
+            source,
+            line_no,
+            f"TLE line 1, columns 21-32 (epoch day of year): day {day:g} does not exist in "
+            f"{year} (expected 1 <= day < {days_in_year + 1}; day 1.0 is 1 January 00:00 UTC)",
+        )
+
+
 def _orbit_from_satrec(satrec: Satrec, name: str, source: str) -> Sgp4Orbit:
     if satrec.error:
         raise SatsightError(
@@ -300,6 +324,7 @@ def parse_tle(text: str | list[str] | tuple[str, ...], source: str = "TLE") -> l
                 f"TLE line 2, columns 3-7: catalogue number {line2[2:7]!r} differs from line 1's "
                 f"{line1[2:7]!r}",
             )
+        _check_tle_epoch(line1, source, no)
         satrec = Satrec.twoline2rv(line1, line2, WGS72)
         orbits.append(_orbit_from_satrec(satrec, name, f"{source} (line {no})"))
         k += 2
@@ -341,8 +366,15 @@ def _strip_units(value: str) -> str:
 def parse_omm_kvn(text: str) -> list[dict[str, str]]:
     """OMM records from CCSDS KVN text: ``KEY = value`` lines, ``COMMENT`` lines skipped; a
     new record starts at each ``CCSDS_OMM_VERS`` (or at a repeated ``EPOCH``)."""
+    return _parse_omm_kvn_lines(text)[0]
+
+
+def _parse_omm_kvn_lines(text: str) -> tuple[list[dict[str, str]], list[dict[str, int]]]:
+    """``parse_omm_kvn``'s records, and for each the line (1-based) of every keyword."""
     records: list[dict[str, str]] = []
+    record_lines: list[dict[str, int]] = []
     current: dict[str, str] = {}
+    lines: dict[str, int] = {}
     for no, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line or line.startswith("COMMENT"):
@@ -354,11 +386,14 @@ def parse_omm_kvn(text: str) -> list[dict[str, str]]:
         if key == "CCSDS_OMM_VERS" or key in current:
             if current:
                 records.append(current)
-            current = {}
+                record_lines.append(lines)
+            current, lines = {}, {}
         current[key] = value
+        lines[key] = no
     if current:
         records.append(current)
-    return records
+        record_lines.append(lines)
+    return records, record_lines
 
 
 def parse_omm_xml(text: str) -> list[dict[str, str]]:
@@ -407,6 +442,8 @@ def parse_omm_csv(text: str) -> list[dict[str, str]]:
 
 
 def _omm_epoch_days(value: str, source: str) -> float:
+    """sgp4init's epoch (days since 1949-12-31 00:00 UTC) of an OMM ``EPOCH``, checked
+    against the calendar; ``source`` names the record (and line) in messages."""
     m = _OMM_EPOCH_RE.match(value.strip())
     if m is None:
         raise SatsightError(
@@ -415,43 +452,93 @@ def _omm_epoch_days(value: str, source: str) -> float:
     if m.group(1):
         year, month, day = int(m.group(1)), int(m.group(2)), int(m.group(3))
         hour, minute, second = int(m.group(4)), int(m.group(5)), float(m.group(6))
+        if not 1 <= month <= 12:
+            raise SatsightError(f"{source}: EPOCH {value!r}: month {month} does not exist")
+        days_in_month = calendar.monthrange(max(year, 1), month)[1]
+        if year < 1 or not 1 <= day <= days_in_month:
+            raise SatsightError(
+                f"{source}: EPOCH {value!r}: {year:04d}-{month:02d} has {days_in_month} days, "
+                f"so day {day} does not exist; correct the date"
+            )
         date = datetime(year, month, day)
     else:
         year, doy = int(m.group(7)), int(m.group(8))
         hour, minute, second = int(m.group(9)), int(m.group(10)), float(m.group(11))
-        if not 1 <= doy <= 366:
-            raise SatsightError(f"{source}: EPOCH {value!r} has day of year {doy}")
+        days_in_year = 366 if calendar.isleap(year) else 365
+        if year < 1 or not 1 <= doy <= days_in_year:
+            raise SatsightError(
+                f"{source}: EPOCH {value!r}: day of year {doy} does not exist ({year} has "
+                f"{days_in_year} days); correct the date"
+            )
         date = datetime.fromordinal(datetime(year, 1, 1).toordinal() + doy - 1)
+    if hour > 23 or minute > 59 or second >= 60.0:
+        raise SatsightError(
+            f"{source}: EPOCH {value!r}: time of day out of range (hh 00-23, mm 00-59, ss below 60)"
+        )
     days = (date - _SGP4_EPOCH0).days
     return days + (hour * 3600.0 + minute * 60.0 + second) / SECONDS_PER_DAY
 
 
-def orbit_from_omm(fields: dict[str, str], source: str = "OMM") -> Sgp4Orbit:
+# Ranges that SGP4 needs (beyond these sgp4init fails, overflows, or propagates NaN):
+# (low, high, low included, high included, what to write).
+_OMM_RANGES = {
+    "NORAD_CAT_ID": (0.0, 339999.0, True, True, "an integer 0-339999 (the Alpha-5 range)"),
+    "ECCENTRICITY": (0.0, 1.0, True, False, "0 <= e < 1 (a closed orbit)"),
+    "MEAN_MOTION": (0.0, math.inf, False, False, "> 0 rev/day"),
+    "INCLINATION": (0.0, 180.0, True, True, "0-180 deg"),
+}
+
+
+def orbit_from_omm(
+    fields: dict[str, str], source: str = "OMM", lines: dict[str, int] | None = None
+) -> Sgp4Orbit:
     """An ``Sgp4Orbit`` from one OMM record's keywords (mean elements in degrees and rev/day,
-    BSTAR in 1/Earth radii), initialised with WGS-72 like a TLE."""
+    BSTAR in 1/Earth radii), initialised with WGS-72 like a TLE.
+
+    lines: the line of each keyword in the file (KVN), named in messages. Raises
+    SatsightError for a missing keyword, an impossible EPOCH, a value that is not a finite
+    number, or one outside the range SGP4 needs (``_OMM_RANGES``)."""
+    lines = lines or {}
+
+    def where(key: str) -> str:
+        return f"{source}, line {lines[key]}" if key in lines else source
+
     missing = [k for k in _OMM_REQUIRED if k not in fields]
     if missing:
         raise SatsightError(f"{source}: missing OMM keyword(s) {', '.join(missing)}")
     for key, allowed in _OMM_EXPECTED.items():
         if key in fields and fields[key].strip().upper() not in allowed:
             raise SatsightError(
-                f"{source}: {key} = {fields[key]!r}; SGP4 elements need {' or '.join(allowed)}"
+                f"{where(key)}: {key} = {fields[key]!r}; SGP4 elements need {' or '.join(allowed)}"
             )
 
     def number(key: str, default: float | None = None) -> float:
         if key not in fields and default is not None:
             return default
         try:
-            return float(_strip_units(fields[key]))
+            value = float(_strip_units(fields[key]))
         except ValueError:
-            raise SatsightError(f"{source}: {key} = {fields[key]!r} is not a number") from None
+            raise SatsightError(f"{where(key)}: {key} = {fields[key]!r} is not a number") from None
+        if not math.isfinite(value):
+            raise SatsightError(f"{where(key)}: {key} = {fields[key]!r} must be a finite number")
+        if key in _OMM_RANGES:
+            low, high, low_in, high_in, expected = _OMM_RANGES[key]
+            above = value >= low if low_in else value > low
+            below = value <= high if high_in else value < high
+            whole = key != "NORAD_CAT_ID" or value == math.floor(value)
+            if not (above and below and whole):
+                raise SatsightError(
+                    f"{where(key)}: {key} = {fields[key]!r} is out of range; SGP4 needs {expected}"
+                )
+        return value
 
-    epoch_days = _omm_epoch_days(fields["EPOCH"], source)
+    epoch_days = _omm_epoch_days(fields["EPOCH"], where("EPOCH"))
+    catalog_number = int(number("NORAD_CAT_ID"))
     satrec = Satrec()
     satrec.sgp4init(
         WGS72,
         "i",
-        int(number("NORAD_CAT_ID")),
+        catalog_number,
         epoch_days,
         number("BSTAR"),
         number("MEAN_MOTION_DOT", 0.0) / _NDOT_UNITS,
@@ -463,7 +550,7 @@ def orbit_from_omm(fields: dict[str, str], source: str = "OMM") -> Sgp4Orbit:
         number("MEAN_MOTION") * 2.0 * math.pi / 1440.0,
         math.radians(number("RA_OF_ASC_NODE")),
     )
-    satrec.satnum_str = str(int(number("NORAD_CAT_ID")))
+    satrec.satnum_str = str(catalog_number)
     return _orbit_from_satrec(satrec, fields.get("OBJECT_NAME", ""), source)
 
 
@@ -471,17 +558,23 @@ def parse_omm(text: str, source: str = "OMM") -> list[Sgp4Orbit]:
     """Every OMM record in ``text``, whose form (XML, JSON, KVN or CSV) is recognised from
     its first characters."""
     head = text.lstrip()
+    record_lines: list[dict[str, int]] = []  # known for KVN only
     if head.startswith("<"):
         records = parse_omm_xml(text)
     elif head.startswith(("{", "[")):
         records = parse_omm_json(text)
     elif re.match(r"^(CCSDS_OMM_VERS|COMMENT)\b", head) or _KVN_RE.match(head.split("\n")[0]):
-        records = parse_omm_kvn(text)
+        records, record_lines = _parse_omm_kvn_lines(text)
     else:
         records = parse_omm_csv(text)
     if not records:
         raise SatsightError(f"{source}: no OMM record found")
-    return [orbit_from_omm(r, f"{source} (record {i + 1})") for i, r in enumerate(records)]
+    if len(record_lines) != len(records):
+        record_lines = [{} for _ in records]
+    return [
+        orbit_from_omm(r, f"{source} (record {i + 1})", lines)
+        for i, (r, lines) in enumerate(zip(records, record_lines, strict=True))
+    ]
 
 
 # --- files and selection ---------------------------------------------------------------------
