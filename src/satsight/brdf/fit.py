@@ -164,8 +164,9 @@ def fit_brdf(
     """Least-squares fit of a model's parameters to a measured table (module docstring).
 
     model: "phong", "improved_phong" or "ggx"; masking: GGX masking ("schlick", the
-    paper's, or "smith"). Raises ``SatsightError`` for an unknown model, too few
-    measurements, or a fit whose directional albedo exceeds 1 (check_energy).
+    paper's, or "smith"). Raises ``SatsightError`` for an unknown model, a degenerate table
+    (``check_table``), too few measurements, or a fit whose directional albedo exceeds 1
+    (check_energy).
     """
     if model not in FITTABLE_MODELS:
         raise SatsightError(
@@ -175,10 +176,19 @@ def fit_brdf(
         raise SatsightError(f"unknown GGX masking '{masking}'; use one of {', '.join(MASKINGS)}")
     n = measurements.n_channels
     names = parameter_names(model, measurements.channel_names)
+    check_table(measurements)
     if measurements.size <= len(names):
         raise SatsightError(
             f"{measurements.path}: {measurements.size} measurements cannot determine the "
             f"{len(names)} parameters of the {model} model; measure more geometries"
+        )
+    distinct = _distinct_rows(measurements)
+    if distinct <= len(names):
+        raise SatsightError(
+            f"{measurements.path}: the {measurements.size} rows hold only {distinct} distinct "
+            f"(geometry, channel) measurements, which cannot determine the {len(names)} "
+            f"parameters of the {model} model (repeating a geometry adds no information about "
+            "the lobe's shape); measure more incidence and viewing angles"
         )
     wi, wo, channel = measurements.wi(), measurements.wo(), measurements.channel
     measured = measurements.brdf_per_sr
@@ -265,6 +275,68 @@ def fit_brdf(
         message=str(best.message),
         source=_source(measurements),
     )
+
+
+def _geometry_keys(measurements: BrdfMeasurements) -> np.ndarray:
+    """(N,) integer index of each row's geometry: equal direction pairs (wi, wo) to 1e-9,
+    so that phi = 0 and 360 deg, or any phi at theta = 0, are the same geometry."""
+    directions = np.concatenate([measurements.wi(), measurements.wo()], axis=1)
+    rounded = np.round(directions * 1e9).astype(np.int64)
+    _, inverse = np.unique(rounded, axis=0, return_inverse=True)
+    return inverse.reshape(-1)
+
+
+def _distinct_rows(measurements: BrdfMeasurements) -> int:
+    """The number of distinct (geometry, channel) pairs of a table."""
+    keys = np.stack([_geometry_keys(measurements), measurements.channel], axis=1)
+    return len(np.unique(keys, axis=0))
+
+
+def _line(measurements: BrdfMeasurements, row: int) -> str:
+    """', line L' for a row read from a file, else ', row R' (0-based)."""
+    lines = measurements.line_numbers
+    if lines.size > row and lines[row] > 0:
+        return f", line {int(lines[row])}"
+    return f", row {row}"
+
+
+def check_table(measurements: BrdfMeasurements) -> None:
+    """Refuse a table that no model can be fitted to, with one line naming the file and
+    what is wrong: no rows, a non-finite angle or BRDF value (NaN, inf), no positive BRDF
+    value at all (no reflected light: every model fits it with zero reflectance and an
+    undetermined lobe), or a single measured geometry (one pair of incidence and viewing
+    directions: the lobe's shape is undetermined). Small negative values (noise after a
+    background subtraction) are allowed here; ``read_brdf_csv`` refuses them in files."""
+    m = measurements
+    if m.size == 0:
+        raise SatsightError(f"{m.path}: the table has no measurements")
+    columns = {
+        "theta_i_deg": m.theta_i_rad,
+        "phi_i_deg": m.phi_i_rad,
+        "theta_o_deg": m.theta_o_rad,
+        "phi_o_deg": m.phi_o_rad,
+        "brdf_per_sr": m.brdf_per_sr,
+    }
+    for name, values in columns.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise SatsightError(
+                f"{m.path}{_line(m, int(bad[0]))}: {name} is {values[bad[0]]} ({bad.size} "
+                "non-finite value(s) in the table); give finite numbers"
+            )
+    if not np.any(m.brdf_per_sr > 0.0):
+        raise SatsightError(
+            f"{m.path}: every one of the {m.size} brdf_per_sr values is 0, so there is no "
+            "reflected light to fit; check that the column holds the BRDF in sr^-1"
+        )
+    if int(_geometry_keys(m).max()) == 0:
+        raise SatsightError(
+            f"{m.path}: all {m.size} rows measure one geometry (theta_i = "
+            f"{math.degrees(m.theta_i_rad[0]):g}, phi_i = {math.degrees(m.phi_i_rad[0]):g}, "
+            f"theta_o = {math.degrees(m.theta_o_rad[0]):g}, phi_o = "
+            f"{math.degrees(m.phi_o_rad[0]):g} deg), which cannot show the shape of the "
+            "reflection lobe; measure several incidence and viewing angles"
+        )
 
 
 def _fitted_variable_names(model: str, channel_names: tuple[str, ...]) -> tuple[str, ...]:

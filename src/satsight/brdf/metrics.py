@@ -66,7 +66,10 @@ def fit_metrics(measurements: BrdfMeasurements, fitted_per_sr: np.ndarray) -> Fi
     fitted = np.asarray(fitted_per_sr, dtype=np.float64)
     mse = float(np.mean((fitted - measured) ** 2))
     peak = float(np.max(measured))
-    psnr = math.inf if mse == 0.0 else 10.0 * math.log10(peak * peak / mse)
+    if mse == 0.0:
+        psnr = math.inf
+    else:  # a table without a positive value has no peak: -inf dB
+        psnr = 10.0 * math.log10(peak * peak / mse) if peak > 0.0 else -math.inf
 
     m = measurements
     # Spectral angle: geometries where every channel was measured.
