@@ -311,8 +311,9 @@ class OmmConfig(_Strict):
 
 class OemConfig(_Strict):
     """The target (or the observer) follows a CCSDS OEM ephemeris file (KVN), interpolated
-    as its header says. Without ``epoch_utc`` the scenario starts at the first useable time
-    of the file; every frame must fall inside its useable span."""
+    as its header says. Without ``epoch_utc`` the scenario starts at the first time the file
+    holds (useable and not before its first state); every frame must fall inside the span it
+    holds (never extrapolated) and outside its gaps (see satsight.ephemeris.oem)."""
 
     file: Path
 
