@@ -266,7 +266,9 @@ def _check_tle_epoch(line1: str, source: str, line_no: int) -> None:
         )
 
 
-def _orbit_from_satrec(satrec: Satrec, name: str, source: str) -> Sgp4Orbit:
+def _orbit_from_satrec(
+    satrec: Satrec, name: str, source: str, catalog_number: str | None = None
+) -> Sgp4Orbit:
     if satrec.error:
         raise SatsightError(
             f"{source}: SGP4 cannot initialise these elements (sgp4 error {satrec.error}); "
@@ -274,7 +276,7 @@ def _orbit_from_satrec(satrec: Satrec, name: str, source: str) -> Sgp4Orbit:
         )
     satellite = EarthSatellite.from_satrec(satrec, timescale())
     satellite.name = name
-    number = str(getattr(satrec, "satnum_str", "") or satrec.satnum)
+    number = catalog_number or str(getattr(satrec, "satnum_str", "") or satrec.satnum)
     return Sgp4Orbit(name=name, catalog_number=number, source=source, satellite=satellite)
 
 
@@ -550,8 +552,10 @@ def orbit_from_omm(
         number("MEAN_MOTION") * 2.0 * math.pi / 1440.0,
         math.radians(number("RA_OF_ASC_NODE")),
     )
-    satrec.satnum_str = str(catalog_number)
-    return _orbit_from_satrec(satrec, fields.get("OBJECT_NAME", ""), source)
+    # The number as decimal digits (sgp4 stores 5 characters: Alpha-5 above 99999).
+    return _orbit_from_satrec(
+        satrec, fields.get("OBJECT_NAME", ""), source, catalog_number=str(catalog_number)
+    )
 
 
 def parse_omm(text: str, source: str = "OMM") -> list[Sgp4Orbit]:
