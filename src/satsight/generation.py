@@ -8,6 +8,8 @@ writes, because every frame depends only on the scenario and its plan index.
 
 from __future__ import annotations
 
+import errno
+import logging
 import os
 import shutil
 import signal
@@ -35,9 +37,11 @@ from satsight.dataset.journal import (
     JOURNAL_NAME,
     JournalFrames,
     JournalWriter,
+    file_checksum,
     journal_frames,
     write_bytes_atomic,
 )
+from satsight.dataset.lock import WriterLock, folder_entries
 from satsight.dataset.manifest import (
     finalize_dataset,
     manifest_document,
@@ -50,6 +54,8 @@ from satsight.dataset.staging import check_dataset_folder
 from satsight.errors import SatsightError
 from satsight.pipeline import FrameEngine, RenderedFrame
 from satsight.scene.obj_export import write_obj
+
+log = logging.getLogger(__name__)
 
 ProgressCallback = Callable[[int, int], None]
 # Threads that encode one frame's files (PNG and EXR encoders release the GIL).
@@ -188,6 +194,27 @@ def _check_same_dataset(root: Path, manifest: dict, scenario: Scenario) -> None:
     )
 
 
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO,
+                 errno.EFBIG}  # fmt: skip
+
+
+@contextmanager
+def _write_errors_teach(out_dir: Path) -> Iterator[None]:
+    """A file system error while the dataset is written becomes one line that names the
+    file and says what to do (every committed frame is kept)."""
+    try:
+        yield
+    except SatsightError:
+        raise
+    except OSError as error:
+        path = error.filename or out_dir
+        what = "could not write" if error.errno in _WRITE_ERRNOS else "could not use"
+        raise SatsightError(
+            f"{what} {path}: {error.strerror or error}; the frames committed so far are "
+            "kept: free space or fix the folder, then run again with --resume"
+        ) from None
+
+
 def _remove_temporary_files(root: Path) -> None:
     """Delete files a killed run left under temporary names (``.NAME.tmp-PID``)."""
     for folder, _, names in os.walk(root):
@@ -196,15 +223,37 @@ def _remove_temporary_files(root: Path) -> None:
                 Path(folder, name).unlink(missing_ok=True)
 
 
-def _intact(root: Path, record: dict) -> bool:
-    """Whether every file of a committed frame is there with its committed size."""
+# Threads that hash committed files on resume (hashlib releases the GIL), and how many
+# frames they may hold at once.
+HASH_THREADS = 4
+_HASH_WINDOW = 4 * HASH_THREADS
+
+
+def _damage(root: Path, record: dict) -> str | None:
+    """What is wrong with a committed frame's files ("images/frame_000004.png missing",
+    "... changed"), or None when each is there with its committed size and SHA-256."""
     for relative, checksum in record.get("checksums", {}).items():
         try:
             if (root / relative).stat().st_size != checksum["size_bytes"]:
-                return False
+                return f"{relative} changed"
+            if file_checksum(root / relative)["sha256"] != checksum["sha256"]:
+                return f"{relative} changed"
         except OSError:
-            return False
-    return True
+            return f"{relative} missing"
+    return None
+
+
+def _bounded_map(function: Callable, items, threads: int, window: int) -> Iterator:
+    """``map(function, items)`` on ``threads`` threads, in order, with at most ``window``
+    items in flight (a 10^6-frame journal is never held whole)."""
+    with ThreadPoolExecutor(threads, thread_name_prefix="satsight-hash") as pool:
+        pending: deque = deque()
+        for item in items:
+            pending.append(pool.submit(function, item))
+            if len(pending) >= window:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
 
 
 class CommitTable:
@@ -243,9 +292,10 @@ class CommitTable:
         return JournalFrames(root / JOURNAL_NAME, self._offsets, self._lengths).raw_lines()
 
 
-def committed_frames(root: Path, table: CommitTable) -> None:
+def committed_frames(root: Path, table: CommitTable) -> list[str]:
     """Enter in ``table`` the frames committed in ``root``'s journal whose files are all
-    there with their committed sizes (the last line of a frame wins)."""
+    there with their committed size and SHA-256 (the last line of a frame wins); what is
+    wrong with each frame left out (to be rendered again)."""
 
     def keep(record: dict) -> bool:
         index = int(record["frame_index"])
@@ -254,11 +304,20 @@ def committed_frames(root: Path, table: CommitTable) -> None:
                 f"{root / JOURNAL_NAME} holds frame {index}, which this run does not make "
                 "(another shard's or scenario's); use the folder it was started for"
             )
-        return _intact(root, record)
+        return True
 
     lines = journal_frames(root, keep)
-    for index, offset, length in zip(lines.indices, lines.offsets, lines.lengths, strict=True):
-        table.commit(int(index), int(offset), int(length))
+    damaged = []
+    records = iter(lines) if len(lines) else iter(())
+    checks = _bounded_map(lambda record: _damage(root, record), records, HASH_THREADS,
+                          _HASH_WINDOW)  # fmt: skip
+    spans = zip(lines.indices, lines.offsets, lines.lengths, checks, strict=True)
+    for index, offset, length, damage in spans:
+        if damage is None:
+            table.commit(int(index), int(offset), int(length))
+        else:
+            damaged.append(f"frame {index}: {damage}")
+    return damaged
 
 
 def prepare_folder(
@@ -271,9 +330,10 @@ def prepare_folder(
     """
     out_dir = Path(out_dir)
     check_dataset_folder(out_dir, overwrite, resume)  # again: the folder may have changed
-    if out_dir.is_dir() and any(out_dir.iterdir()):  # a dataset (checked above)
-        if overwrite:
-            shutil.rmtree(out_dir)
+    if entries := folder_entries(out_dir):  # a dataset (checked above)
+        if overwrite:  # all but this run's lock file
+            for entry in entries:
+                shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
         else:  # resume
             _check_same_dataset(out_dir, manifest, scenario)
             return (out_dir / COMPLETE_NAME).is_file()
@@ -417,18 +477,16 @@ def generate_dataset(
     frames = (shard or Shard(0, 1)).frames(engine.frame_count)
     summary = RunSummary(out_dir, len(frames), 0, 0, False, False, manifest["render_variant"], 0.0)
     with ExitStack() as stack:
+        stack.enter_context(WriterLock(out_dir))  # one writer per folder, until the end
+        stack.enter_context(_write_errors_teach(out_dir))
         client = None
         if workers is not None or scheduler is not None:
             from satsight.distributed import dask_client
 
             client = stack.enter_context(dask_client(workers, scheduler))
-        if prepare_folder(out_dir, manifest, scenario, overwrite, resume):
-            summary.complete = True
-            summary.committed_before = len(frames)
-            summary.total_seconds = time.perf_counter() - started
-            return summary
+        complete = prepare_folder(out_dir, manifest, scenario, overwrite, resume)
         _render_missing_frames(engine, out_dir, manifest, shard or Shard(0, 1), client, summary,
-                               stop, on_frame_done)  # fmt: skip
+                               stop, on_frame_done, complete)  # fmt: skip
     summary.total_seconds = time.perf_counter() - started
     return summary
 
@@ -442,16 +500,26 @@ def _render_missing_frames(
     summary: RunSummary,
     stop: StopFlag,
     on_frame_done: ProgressCallback | None,
+    complete: bool = False,
 ) -> None:
-    """Commit every frame of ``shard`` not yet committed in ``out_dir``, then close the
-    dataset (unless the run was stopped)."""
+    """Commit every frame of ``shard`` not yet committed in ``out_dir`` (or whose files are
+    missing or changed), then close the dataset (unless the run was stopped). complete:
+    ``out_dir`` is closed already; it is left untouched when every file is intact."""
     frames = shard.frames(engine.frame_count)
-    _remove_temporary_files(out_dir)
-    _write_dataset_files(out_dir, engine)
     table = CommitTable(shard, engine.frame_count)
-    committed_frames(out_dir, table)
+    damaged = committed_frames(out_dir, table)
     summary.committed_before = table.count
     todo = table.todo()
+    if complete and not todo:
+        summary.complete = True
+        return
+    if damaged:
+        shown = "; ".join(damaged[:5]) + (f"; {len(damaged) - 5} more" if len(damaged) > 5 else "")
+        log.warning("%s: rendering again %d committed frames whose files are missing or "
+                    "changed (%s)", out_dir, len(damaged), shown)  # fmt: skip
+    (out_dir / COMPLETE_NAME).unlink(missing_ok=True)  # repaired below, closed again
+    _remove_temporary_files(out_dir)
+    _write_dataset_files(out_dir, engine)
     if on_frame_done is not None:
         on_frame_done(table.count, len(frames))
 

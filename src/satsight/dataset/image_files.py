@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import errno
+import shutil
 from pathlib import Path
 
 import imagecodecs
@@ -52,11 +54,32 @@ def write_exr(path: Path, channels: dict[str, np.ndarray]) -> None:
 
     channels: name -> (H, W) array, or an (H, W, 3) array named "RGB", which becomes the
     R, G, B channels (other 3-plane names become NAME.R, NAME.G, NAME.B).
+
+    OpenEXR reports a failed write (a full disk among others) as a RuntimeError; it is
+    raised here as an OSError naming the file, ENOSPC when the disk is (nearly) full.
     """
     header = {"compression": OpenEXR.RLE_COMPRESSION, "type": OpenEXR.scanlineimage}
     data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
     with OpenEXR.File(header, data) as exr:
-        exr.write(str(path))
+        try:
+            exr.write(str(path))
+        except RuntimeError as error:
+            raise _exr_write_error(Path(path), error) from None
+
+
+# Free space under which a failed EXR write is taken for a full disk (OpenEXR writes in
+# blocks of a few MB and does not say why a write failed).
+_NEARLY_FULL_BYTES = 64 << 20
+
+
+def _exr_write_error(path: Path, error: RuntimeError) -> OSError:
+    try:
+        full = shutil.disk_usage(path.parent).free < _NEARLY_FULL_BYTES
+    except OSError:
+        full = False
+    if full:
+        return OSError(errno.ENOSPC, "No space left on device", str(path))
+    return OSError(errno.EIO, f"OpenEXR could not write the file ({error})", str(path))
 
 
 def read_exr(path: Path) -> dict[str, np.ndarray]:

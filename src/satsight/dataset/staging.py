@@ -9,14 +9,16 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from satsight.dataset.lock import LOCK_NAME, folder_entries, refuse_if_locked
 from satsight.errors import SatsightError
 
 
 def check_output_folder(out_dir: Path, overwrite: bool) -> None:
-    """Refuse to write over an existing non-empty folder unless told to."""
+    """Refuse to write over an existing non-empty folder unless told to (a writer's lock
+    file alone leaves a folder empty)."""
     if out_dir.exists() and not out_dir.is_dir():
         raise SatsightError(f"output path {out_dir} exists and is not a folder")
-    if out_dir.is_dir() and any(out_dir.iterdir()) and not overwrite:
+    if folder_entries(out_dir) and not overwrite:
         raise SatsightError(
             f"output folder {out_dir} is not empty; choose another or pass --overwrite"
         )
@@ -27,7 +29,8 @@ def check_dataset_folder(out_dir: Path, overwrite: bool, resume: bool) -> None:
     (generate, demo) cannot use: a file, the current folder or one of its parents, a place
     that cannot be created or written in, a non-empty folder that holds no satsight dataset,
     or a dataset without ``overwrite`` or ``resume``. Whether a dataset to resume holds the
-    same scenario is checked later, against the run's manifest."""
+    same scenario is checked later, against the run's manifest. A folder another process
+    is writing is refused first, naming that process."""
     from satsight.dataset.journal import journal_frames
     from satsight.dataset.reader import COMPLETE_NAME, is_dataset
 
@@ -47,7 +50,8 @@ def check_dataset_folder(out_dir: Path, overwrite: bool, resume: bool) -> None:
         raise SatsightError(
             f"cannot write in {existing} (permission denied); choose another output folder"
         )
-    if not (out_dir.is_dir() and any(out_dir.iterdir())):
+    refuse_if_locked(out_dir)
+    if not folder_entries(out_dir):
         return
     if not is_dataset(out_dir):
         raise SatsightError(
@@ -73,7 +77,8 @@ def staged_folder(out_dir: Path, overwrite: bool = False) -> Iterator[Path]:
     """Yield a temporary folder beside ``out_dir``; on success it replaces ``out_dir``.
 
     On any error the temporary folder is removed and ``out_dir`` is left as it was, so a
-    failed or interrupted run never leaves a half-written dataset.
+    failed or interrupted run never leaves a half-written dataset. A writer's lock file in
+    ``out_dir`` moves into the new folder (its lock held throughout).
     """
     out_dir = Path(out_dir).resolve()
     if out_dir == Path(out_dir.anchor) or Path.cwd().is_relative_to(out_dir):
@@ -92,12 +97,16 @@ def staged_folder(out_dir: Path, overwrite: bool = False) -> Iterator[Path]:
     _apply_umask(staging)
     old = out_dir.with_name(f".{out_dir.name}.old-{staging.name.rsplit('-', 1)[-1]}")
     try:
+        if (out_dir / LOCK_NAME).is_file():
+            os.replace(out_dir / LOCK_NAME, staging / LOCK_NAME)
         if out_dir.exists():
             out_dir.rename(old)
         staging.rename(out_dir)
     except OSError as error:
         if old.exists() and not out_dir.exists():
             old.rename(out_dir)
+        if (staging / LOCK_NAME).is_file() and out_dir.is_dir():
+            os.replace(staging / LOCK_NAME, out_dir / LOCK_NAME)
         shutil.rmtree(staging, ignore_errors=True)
         raise SatsightError(
             f"could not move the finished dataset into {out_dir}: {error}"
