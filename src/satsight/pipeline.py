@@ -87,6 +87,7 @@ def build_target(config: TargetConfig, band_nm: tuple[float, float] | None = Non
         materials=pool,
         builtin_materials=m.materials,
         crease_angle_deg=m.crease_angle_deg,
+        strict_textures=m.strict_textures,
     )
 
 

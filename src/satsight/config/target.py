@@ -79,13 +79,16 @@ class MeshTargetConfig(_Strict):
     colour integrated over the scenario's band}; those parts take that material instead of
     the file's values (which otherwise win, even where a file material is named like a
     built-in one). crease_angle_deg: parts the file gives no normals are smoothed across
-    edges flatter than this (0: flat triangles).
+    edges flatter than this (0: flat triangles). strict_textures: a texture the file names
+    that is missing, not an image or too large (``MAX_TEXTURE_FILE_PIXELS``) stops the run
+    with an error instead of a warning (its material then renders untextured).
     """
 
     path: Path
     scale_m: float = Field(default=1.0, gt=0, description="metres per file unit")
     materials: dict[str, str] = Field(default_factory=dict)
     crease_angle_deg: float = Field(default=30.0, ge=0.0, le=180.0)
+    strict_textures: bool = False
 
     @field_validator("materials")
     @classmethod

@@ -36,10 +36,14 @@ Units. glTF is in metres; OBJ has no unit and is read as metres. Both are multip
 
 from __future__ import annotations
 
+import base64
+import io
 import json
 import logging
 import re
 import struct
+import urllib.parse
+import warnings
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -51,7 +55,12 @@ from satsight.errors import SatsightError
 from satsight.scene.materials import DEFAULT_MATERIAL_NAME, FIRST_MATERIALS, Material
 from satsight.scene.mesh import PartSurface, TargetMesh, merge_parts
 from satsight.scene.normals import DEFAULT_CREASE_ANGLE_DEG
-from satsight.scene.textures import SurfaceTextures, TextureImage
+from satsight.scene.textures import (
+    SurfaceTextures,
+    TextureImage,
+    open_texture_file,
+    texture_size_problem,
+)
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +70,30 @@ _COMPRESSION = {
     "EXT_meshopt_compression": "meshopt",
     "KHR_meshopt_compression": "meshopt",
 }
+STRICT_TEXTURES_KEY = "target.mesh.strict_textures"
+
+
+class _TextureReport:
+    """Says that a texture of the mesh file ``path`` is not used: a WARNING (the material
+    renders without it), or with ``strict`` a SatsightError."""
+
+    def __init__(self, path: Path, strict: bool):
+        self.path, self.strict = path, strict
+
+    def problem(self, material: str, texture: str, why: str) -> None:
+        where = f"{self.path.name}: material '{material}': texture {texture} {why}"
+        if self.strict:
+            raise SatsightError(
+                f"{where}; fix the file or its reference ({STRICT_TEXTURES_KEY} is true; "
+                "false renders the material without the texture, with a warning)"
+            )
+        log.warning(
+            "%s; the material is rendered without it (%s: true makes this an error)",
+            where,
+            STRICT_TEXTURES_KEY,
+        )
+
+
 _OBJ_DIRECTIVE = re.compile(r"^(o|g|usemtl|f)[ \t]+(.*?)[ \t]*$", re.MULTILINE)
 
 
@@ -70,6 +103,7 @@ def load_mesh(
     scale_m: float = 1.0,
     builtin_materials: Mapping[str, str] | None = None,
     crease_angle_deg: float = DEFAULT_CREASE_ANGLE_DEG,
+    strict_textures: bool = False,
 ) -> TargetMesh:
     """Read an OBJ / glTF / GLB file into a TargetMesh (vertices in metres times ``scale_m``).
 
@@ -77,7 +111,9 @@ def load_mesh(
     ``FIRST_MATERIALS``). builtin_materials: {part name or file material name: library
     material name}, the parts that take a library material instead of the file's (a part
     name wins over a material name). crease_angle_deg: smoothing angle for parts the file
-    gives no normals (0: flat triangles).
+    gives no normals (0: flat triangles). strict_textures: a texture the file names but
+    that cannot be used (missing, not an image, above ``MAX_TEXTURE_FILE_PIXELS``) is an
+    error instead of a warning (the material then renders without it).
     """
     path = Path(path)
     if not path.is_file():
@@ -93,12 +129,13 @@ def load_mesh(
     if not (np.isfinite(crease_angle_deg) and 0.0 <= crease_angle_deg <= 180.0):
         raise SatsightError(f"crease_angle_deg must be in [0, 180] degrees, got {crease_angle_deg}")
     library = dict(FIRST_MATERIALS if materials is None else materials)
+    report = _TextureReport(path, bool(strict_textures))
     if suffix == ".obj":
-        parts, file_materials = _read_obj(path)
+        parts, file_materials = _read_obj(path, report)
     else:
         header = _gltf_json(path)
         _refuse_compression(header, path)
-        parts, file_materials = _read_gltf(path, header)
+        parts, file_materials = _read_gltf(path, header, report)
     parts, resolved = _resolve_materials(
         parts, library, file_materials, path, dict(builtin_materials or {})
     )
@@ -214,9 +251,15 @@ def _resolve_materials(parts, library: dict, file_materials: dict, path: Path, b
     return named, resolved
 
 
-def _load_scene(path: Path, **kwargs) -> trimesh.Scene:
+def _load_scene(path: Path, file_obj=None, **kwargs) -> trimesh.Scene:
+    """trimesh's scene of ``path`` (or of ``file_obj``, the file's text as read here)."""
+    from PIL import Image
+
     try:
-        return trimesh.load_scene(path, process=False, **kwargs)
+        with warnings.catch_warnings():  # texture sizes are checked against our own limit
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            source = path if file_obj is None else file_obj
+            return trimesh.load_scene(source, process=False, **kwargs)
     except Exception as error:  # trimesh raises many types on malformed input
         raise SatsightError(f"trimesh could not read '{path}': {error}") from error
 
@@ -328,13 +371,143 @@ def _name_obj_parts(runs, geometry: dict, path: Path) -> list[tuple]:
     return [entry[1:] for entry in entries]
 
 
-def _read_obj(path: Path):
-    scene = _load_scene(
-        path, split_objects=True, split_groups=True, group_material=True, maintain_order=False
-    )
-    _refuse_empty(scene, path)
+_OBJ_ELEMENT_LINE = re.compile(r"^[ \t]*(v|vt|vn)[ \t]", re.MULTILINE)
+_OBJ_FACE_BODY = re.compile(r"^[ \t]*f[ \t]([^\n]*)", re.MULTILINE)
+# What each field of a face corner ``v/vt/vn`` refers to, and the lines that define it.
+_OBJ_SLOTS = (("v", "vertex"), ("vt", "texture coordinate"), ("vn", "normal"))
+_PLURAL = {"vertex": "vertices", "texture coordinate": "texture coordinates", "normal": "normals"}
+
+
+def _obj_absolute_faces(text: str, path: Path) -> str | None:
+    """Check every face's indices; the text with relative indices made absolute where it
+    has any (else None: trimesh can read the file as it is).
+
+    OBJ counts vertices (``v``), texture coordinates (``vt``) and normals (``vn``) from 1;
+    a negative index counts back from the last one defined *before* the face's line
+    (-1: the latest). trimesh reads 0 as 1 and counts negative indices from the end of the
+    file, so both are settled here: 0, and indices outside the file's elements, are an
+    error naming the line; relative indices are rewritten as absolute ones.
+    """
+    bodies = " ".join(_OBJ_FACE_BODY.findall(text))
+    if not bodies.strip():
+        return None
+    # Fast path, exact when it passes: every index is in 1..N, N a lower bound of the
+    # smallest count of the elements the faces use (lines "v ", "vt ", "vn " at a line
+    # start). Otherwise the exact count and the line-by-line check below.
+    least = {key: text.startswith(key + " ") + text.count(f"\n{key} ") for key in ("v", "vt", "vn")}
+    used = ["v"] + ["vt"] * bool(re.search(r"\d/\d", bodies))
+    used += ["vn"] * bool(re.search(r"/\d*/\d", bodies))
+    if "#" not in bodies and "-" not in bodies:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # numpy warns when it stops at a non-number
+            try:
+                values = np.fromstring(bodies.replace("/", " "), dtype=np.int64, sep=" ")
+            except (ValueError, DeprecationWarning):
+                values = np.zeros(0, dtype=np.int64)
+        if values.size and values.min() >= 1 and values.max() <= min(least[k] for k in used):
+            return None
+    totals = dict.fromkeys(("v", "vt", "vn"), 0)
+    for match in _OBJ_ELEMENT_LINE.finditer(text):
+        totals[match.group(1)] += 1
+    return _obj_faces_line_by_line(text, totals, path)
+
+
+def _obj_faces_line_by_line(text: str, totals: dict[str, int], path: Path) -> str | None:
+    """``_obj_absolute_faces``'s exact check, one line at a time."""
+    seen = dict.fromkeys(totals, 0)
+    lines = text.split("\n")
+    rewritten = False
+    for number, line in enumerate(lines, 1):
+        stripped = line.lstrip()
+        if stripped[:1] == "v":
+            key = stripped.split(None, 1)[0]
+            if key in seen:
+                seen[key] += 1
+            continue
+        if stripped[:1] != "f" or stripped[1:2] not in (" ", "\t"):
+            continue
+        body = stripped[1:].partition("#")[0]
+        corners = body.split()
+        relative = False
+        for c, corner in enumerate(corners):
+            fields = corner.split("/")
+            if len(fields) > 3:
+                raise _face_error(path, number, line, f"corner '{corner}' has more than 3 fields")
+            for f, ((key, noun), field) in enumerate(zip(_OBJ_SLOTS, fields, strict=False)):
+                if not field:
+                    if f == 0:
+                        raise _face_error(path, number, line, f"corner '{corner}' has no vertex")
+                    continue
+                try:
+                    index = int(field)
+                except ValueError:
+                    raise _face_error(
+                        path, number, line, f"'{field}' in corner '{corner}' is not an integer"
+                    ) from None
+                if index == 0:
+                    raise _face_error(
+                        path,
+                        number,
+                        line,
+                        f"{noun} index 0: OBJ indices start at 1 (1 is the first {noun}, "
+                        f"-1 the latest one before this line); the exporter probably "
+                        f"wrote 0-based indices: add 1 to every index",
+                    )
+                if index > totals[key]:
+                    raise _face_error(
+                        path,
+                        number,
+                        line,
+                        f"{noun} index {index}, but the file defines {totals[key]} "
+                        f"{_PLURAL[noun]} ('{key}' lines)",
+                    )
+                if index < 0:
+                    if -index > seen[key]:
+                        raise _face_error(
+                            path,
+                            number,
+                            line,
+                            f"relative {noun} index {index} reaches before the first "
+                            f"{noun}: only {seen[key]} are defined above this line",
+                        )
+                    fields[f] = str(seen[key] + 1 + index)
+                    relative = True
+            corners[c] = "/".join(fields)
+        if relative:
+            indent = line[: len(line) - len(stripped)]
+            lines[number - 1] = f"{indent}f {' '.join(corners)}"  # trimesh reads no comment
+            rewritten = True
+    return "\n".join(lines) if rewritten else None
+
+
+def _face_error(path: Path, number: int, line: str, problem: str) -> SatsightError:
+    shown = line.strip()
+    shown = shown if len(shown) <= 60 else shown[:57] + "..."
+    return SatsightError(f"{path.name}, line {number} ('{shown}'): {problem}")
+
+
+def _read_obj(path: Path, report: _TextureReport):
     text = path.read_text(encoding="utf-8", errors="replace")
+    absolute = _obj_absolute_faces(text, path)
+    options = {
+        "split_objects": True,
+        "split_groups": True,
+        "group_material": True,
+        "maintain_order": False,
+    }
+    if absolute is None:
+        scene = _load_scene(path, **options)
+    else:  # read from memory; materials and textures still resolve beside the file
+        scene = _load_scene(
+            path,
+            file_obj=io.BytesIO(absolute.encode("utf-8")),
+            file_type="obj",
+            resolver=trimesh.resolvers.FilePathResolver(path),
+            **options,
+        )
+    _refuse_empty(scene, path)
     defined: set[str] = set()  # names of the materials the MTL files define
+    colour_maps: dict[str, tuple[Path, int, str]] = {}  # material -> its map_Kd line
     for library_file in re.findall(r"^mtllib[ \t]+(.+?)[ \t]*$", text, flags=re.MULTILINE):
         mtl = path.parent / library_file
         if not mtl.is_file():
@@ -343,6 +516,8 @@ def _read_obj(path: Path):
         mtl_text = mtl.read_text(encoding="utf-8", errors="replace")
         defined |= set(re.findall(r"^[ \t]*newmtl[ \t]+(.+?)[ \t]*$", mtl_text, re.M))
         _log_unread_mtl_maps(mtl, mtl_text)
+        for material, entry in _mtl_colour_maps(mtl, mtl_text).items():
+            colour_maps.setdefault(material, entry)
     runs = _obj_runs(text)
     geometry = {k: g for k, g in scene.geometry.items() if isinstance(g, trimesh.Trimesh)}
     parts, file_materials, textures, taken = [], {}, {}, set()
@@ -354,14 +529,71 @@ def _read_obj(path: Path):
         parsed = getattr(mesh.visual, "material", None) if material in defined else None
         if material is not None and parsed is not None and material not in file_materials:
             file_materials[material] = _mtl_material(material, parsed, path)
-            image = getattr(parsed, "image", None)
-            if image is not None:
-                textures[material] = SurfaceTextures(
-                    base_color=_texture_image(image, "srgb", ("repeat", "repeat"), path)
-                )
+            if material in colour_maps:
+                image = _map_kd_image(*colour_maps[material], path, material, report)
+                textures[material] = SurfaceTextures(base_color=image)
         surface = _part_surface(mesh, textures.get(material), path, name)
         parts.append((_unique(name, taken), material, vertices, np.array(mesh.faces), surface))
     return parts, file_materials
+
+
+# Options of an MTL texture map and how many values each takes (-o, -s, -t: 1 to 3).
+_MAP_OPTIONS = {
+    **dict.fromkeys(("-blendu", "-blendv", "-bm", "-boost", "-cc", "-clamp"), 1),
+    **dict.fromkeys(("-imfchan", "-texres", "-type"), 1),
+    "-mm": 2,
+    **dict.fromkeys(("-o", "-s", "-t"), 3),
+}
+
+
+def _mtl_colour_maps(mtl: Path, text: str) -> dict[str, tuple[Path, int, str]]:
+    """{material: (MTL file, line number, file name)} of each ``map_Kd`` line, its options
+    (``-s 1 1 1`` and the like, not applied) taken off the file name."""
+    maps: dict[str, tuple[Path, int, str]] = {}
+    material = None
+    for number, line in enumerate(text.splitlines(), 1):
+        words = line.split()
+        if len(words) >= 2 and words[0] == "newmtl":
+            material = line.split(None, 1)[1].strip()
+        elif len(words) >= 2 and words[0].lower() == "map_kd" and material is not None:
+            words = words[1:]
+            options = []
+            while len(words) > 1 and words[0].lower() in _MAP_OPTIONS:
+                most = _MAP_OPTIONS[words[0].lower()]
+                taken = 1
+                while taken <= most and len(words) > taken + 1:
+                    if most == 3 and not re.fullmatch(r"[-+]?[\d.eE+-]+", words[taken]):
+                        break  # -o/-s/-t take 1 to 3 numbers
+                    taken += 1
+                options.append(" ".join(words[:taken]))
+                words = words[taken:]
+            if options:
+                log.warning(
+                    "%s, line %d: map_Kd options not applied: %s",
+                    mtl.name,
+                    number,
+                    ", ".join(options),
+                )
+            maps.setdefault(material, (mtl, number, " ".join(words)))
+    return maps
+
+
+def _map_kd_image(
+    mtl: Path, number: int, name: str, path: Path, material: str, report: _TextureReport
+) -> TextureImage | None:
+    """The ``map_Kd`` image of ``material`` (beside the MTL file, else beside the OBJ), or
+    None after ``report`` has said why not."""
+    candidates = [mtl.parent / name, path.parent / name]
+    if "\\" in name:  # written on Windows
+        candidates += [c.parent / name.replace("\\", "/") for c in candidates]
+    file = next((c for c in candidates if c.is_file()), candidates[0])
+    image, problem = open_texture_file(file)
+    label = f"map_Kd '{name}' ({mtl.name} line {number})"
+    if problem is not None:
+        report.problem(material, label, problem)
+        return None
+    with image:  # closes the file, also when decoding fails
+        return _texture_image(image, "srgb", ("repeat", "repeat"), path, report, material, label)
 
 
 def _log_unread_mtl_maps(mtl: Path, text: str) -> None:
@@ -402,8 +634,15 @@ def _part_surface(mesh: trimesh.Trimesh, textures, path: Path, name: str) -> Par
     return PartSurface(vertex_normals=normals, vertex_uv=uv, textures=textures)
 
 
-def _texture_image(image, encoding: str, wrap_uv, path: Path) -> TextureImage | None:
-    """A TextureImage from a PIL image (8-bit RGB; 16-bit and float images are scaled)."""
+def _texture_image(
+    image, encoding: str, wrap_uv, path: Path, report: _TextureReport, material: str, label: str
+) -> TextureImage | None:
+    """A TextureImage from a PIL image (8-bit RGB; 16-bit and float images are scaled),
+    or None after ``report`` has said why not (too many pixels, or not decodable)."""
+    problem = texture_size_problem(*image.size)  # from the header, before decoding
+    if problem is not None:
+        report.problem(material, label, problem)
+        return None
     try:
         mode = getattr(image, "mode", "RGB")
         if mode.startswith("I") or mode == "F":  # 16/32-bit grey
@@ -413,8 +652,8 @@ def _texture_image(image, encoding: str, wrap_uv, path: Path) -> TextureImage | 
         else:
             pixels = np.asarray(image.convert("RGB"), dtype=np.uint8)
         return TextureImage(pixels, encoding, wrap_uv)
-    except (OSError, ValueError, SatsightError) as error:
-        log.warning("%s: a texture could not be read (%s); ignored", path.name, error)
+    except (OSError, ValueError, SyntaxError, SatsightError) as error:
+        report.problem(material, label, f"could not be decoded ({error})")
         return None
 
 
@@ -529,7 +768,7 @@ def _gltf_frames(header: dict) -> dict[str, tuple[int, str]]:
     return frames
 
 
-def _read_gltf(path: Path, header: dict):
+def _read_gltf(path: Path, header: dict, report: _TextureReport):
     scene = _load_scene(path)
     _refuse_empty(scene, path)
     frames = _gltf_frames(header)
@@ -571,7 +810,9 @@ def _read_gltf(path: Path, header: dict):
                 matches = json_materials.get(material.name, [])
                 entry = matches[0] if len(matches) == 1 else None
                 file_materials[material_name] = _gltf_material(material_name, material, entry, path)
-                textures[material_name] = _gltf_textures(material, entry, header, path)
+                textures[material_name] = _gltf_textures(
+                    material, material_name, entry, header, path, report
+                )
         vertices = trimesh.transformations.transform_points(
             np.asarray(mesh.vertices, float), transform
         )
@@ -619,8 +860,85 @@ def _gltf_texture_info(header: dict, info: dict | None, path: Path, slot: str):
     )
 
 
+def _gltf_image_entry(header: dict, info: dict | None) -> tuple[int | None, dict]:
+    """(index, entry) of the image a material's texture reference ``info`` names."""
+    textures, images = header.get("textures", []), header.get("images", [])
+    index = (info or {}).get("index")
+    texture = textures[index] if isinstance(index, int) and 0 <= index < len(textures) else {}
+    source = texture.get("source")
+    if isinstance(source, int) and 0 <= source < len(images):
+        return source, images[source]
+    return None, {}
+
+
+def _gltf_image_label(header: dict, info: dict | None) -> str:
+    index, image = _gltf_image_entry(header, info)
+    if index is None:
+        return "no image"
+    uri = image.get("uri", "")
+    if uri and not uri.startswith("data:"):
+        return f"'{uri}'"
+    name = f" '{image['name']}'" if image.get("name") else ""
+    return f"image {index}{name}, embedded"
+
+
+def _gltf_uri_bytes(uri: str, path: Path) -> bytes | str:
+    """The bytes a glTF URI names (data: URI or a file beside ``path``), or why not."""
+    if uri.startswith("data:"):
+        try:
+            return base64.b64decode(uri.split(",", 1)[1])
+        except (IndexError, ValueError) as error:
+            return f"has a broken data URI ({error})"
+    file = path.parent / urllib.parse.unquote(uri)
+    if not file.is_file():
+        return f"does not exist (looked for {file})"
+    return file.read_bytes()
+
+
+def _gltf_image_problem(header: dict, info: dict | None, path: Path) -> str:
+    """Why the image of texture reference ``info`` could not be opened, read from the
+    file's own description of it (header only: nothing is decoded)."""
+    index, image = _gltf_image_entry(header, info)
+    if index is None:
+        return "names no image (textures[].source is missing or out of range)"
+    data: bytes | str
+    if "uri" in image:
+        data = _gltf_uri_bytes(image["uri"], path)
+    else:
+        views, buffers = header.get("bufferViews", []), header.get("buffers", [])
+        view_index = image.get("bufferView")
+        if not (isinstance(view_index, int) and 0 <= view_index < len(views)):
+            return "has neither a URI nor a valid bufferView"
+        view = views[view_index]
+        buffer = buffers[view.get("buffer", 0)] if buffers else {}
+        if "uri" in buffer:
+            data = _gltf_uri_bytes(buffer["uri"], path)
+        else:
+            data = _glb_binary_chunk(path)
+        if isinstance(data, bytes):
+            start = view.get("byteOffset", 0)
+            data = data[start : start + view.get("byteLength", 0)]
+    if isinstance(data, str):
+        return data
+    _, problem = open_texture_file(data)
+    return problem or "could not be decoded"
+
+
+def _glb_binary_chunk(path: Path) -> bytes | str:
+    """The BIN chunk of a GLB file (glTF 2.0 section 4.4), or why there is none."""
+    blob = path.read_bytes()
+    json_length = struct.unpack_from("<I", blob, 12)[0] if len(blob) >= 16 else 0
+    start = 20 + json_length
+    if len(blob) < start + 8:
+        return "lies in a binary chunk the file lacks"
+    length, kind = struct.unpack_from("<I4s", blob, start)
+    if kind != b"BIN\0":
+        return "lies in a binary chunk the file lacks"
+    return blob[start + 8 : start + 8 + length]
+
+
 def _gltf_textures(
-    material, entry: dict | None, header: dict, path: Path
+    material, name: str, entry: dict | None, header: dict, path: Path, report: _TextureReport
 ) -> SurfaceTextures | None:
     """The base-colour, metallic-roughness and normal textures of a glTF material (the
     images as trimesh decoded them; wrap modes and the normal scale from the JSON)."""
@@ -638,12 +956,14 @@ def _gltf_textures(
     images = {}
     for key, (attribute, info, encoding) in slots.items():
         image = getattr(material, attribute, None)
-        if image is None:
-            if info:
-                log.warning("%s: %s could not be decoded; ignored", path.name, attribute)
+        if not info and image is None:
+            continue
+        label = f"{attribute} ({_gltf_image_label(header, info)})"
+        if image is None:  # trimesh could not open it: say why
+            report.problem(name, label, _gltf_image_problem(header, info, path))
             continue
         wrap = _gltf_texture_info(header, info, path, attribute)
-        images[key] = _texture_image(image, encoding, wrap, path)
+        images[key] = _texture_image(image, encoding, wrap, path, report, name, label)
     for unread in ("emissiveTexture", "occlusionTexture"):
         if entry.get(unread):
             log.warning("%s: %s is not read", path.name, unread)

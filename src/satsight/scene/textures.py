@@ -26,7 +26,11 @@ of ``pixels`` is the image's top row. ``wrap_uv`` per axis: ``"repeat"`` (glTF's
 
 from __future__ import annotations
 
+import io
+import re
+import warnings
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -38,6 +42,13 @@ FACTOR_MODES = ("multiply", "replace")
 # Larger images are halved (2 x 2 box filter) on loading until they fit: a 8192^2 RGBA8
 # texture already takes 256 MiB (341 MiB with its mip levels) in the renderer.
 MAX_TEXTURE_SIDE_PX = 8192
+#: Texture files with more pixels are not decoded (``open_texture_file``): memory. A file
+#: at the limit (e.g. 16384 x 8192) takes about 3 GiB while it loads (0.5 GiB decoded,
+#: as much again converted to RGB, 1.5 GiB as the float32 values it is halved in down to
+#: ``MAX_TEXTURE_SIDE_PX``), for a texture the renderer keeps at 8192 x 4096 anyway. The
+#: limit is below Pillow's own refusal (twice its ``MAX_IMAGE_PIXELS``, 179 Mpx), so every
+#: file it passes opens.
+MAX_TEXTURE_FILE_PIXELS = 2**27
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,3 +202,48 @@ def halve(pixels: np.ndarray, encoding: str) -> np.ndarray:
 def normal_map_pixels(normals: np.ndarray) -> np.ndarray:
     """(H, W, 3) unit tangent-space normals -> uint8 normal-map pixels, (n + 1) / 2."""
     return encode(0.5 * (np.asarray(normals, dtype=np.float64) + 1.0), "linear")
+
+
+# --- files -----------------------------------------------------------------------------------
+def texture_size_problem(width: int, height: int) -> str | None:
+    """Why an image of width x height pixels is not loaded as a texture, or None."""
+    if width * height <= MAX_TEXTURE_FILE_PIXELS:
+        return None
+    return (
+        f"is {width} x {height} px, more than the {MAX_TEXTURE_FILE_PIXELS:,} px "
+        f"(2^27, e.g. 16384 x 8192) a texture file may hold (memory: a texture is "
+        f"kept at {MAX_TEXTURE_SIDE_PX} px a side at most); scale it down"
+    )
+
+
+def open_texture_file(source: Path | bytes):
+    """(image, None) for an image file or its bytes that may be used as a texture, opened
+    lazily (only its header is read; ``numpy.asarray`` decodes it), else (None, why not):
+    a missing file, one Pillow cannot read as an image, or one above
+    ``MAX_TEXTURE_FILE_PIXELS``. Nothing is decoded to learn the size."""
+    from PIL import Image
+
+    if isinstance(source, Path):
+        if not source.exists():
+            return None, f"does not exist (looked for {source})"
+        if not source.is_file():
+            return None, f"is not a file ({source})"
+    stream = io.BytesIO(source) if isinstance(source, bytes) else source
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our limit applies
+        try:
+            image = Image.open(stream)
+        except Image.DecompressionBombError as error:
+            count = re.search(r"\((\d+) pixels\)", str(error))
+            pixels = f"{int(count.group(1)):,} px" if count else "too many pixels"
+            return None, (
+                f"holds {pixels}, more than the {MAX_TEXTURE_FILE_PIXELS:,} px (2^27) a "
+                "texture file may hold (memory); scale it down"
+            )
+        except Exception as error:  # Pillow raises several types on what it cannot read
+            return None, f"is not an image Pillow can read ({type(error).__name__}: {error})"
+    problem = texture_size_problem(*image.size)
+    if problem is not None:
+        image.close()
+        return None, problem
+    return image, None
