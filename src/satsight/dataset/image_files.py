@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import re
 import shutil
 from pathlib import Path
 
@@ -79,7 +80,8 @@ def _exr_write_error(path: Path, error: RuntimeError) -> OSError:
         full = False
     if full:
         return OSError(errno.ENOSPC, "No space left on device", str(path))
-    return OSError(errno.EIO, f"OpenEXR could not write the file ({error})", str(path))
+    reason = re.sub(r"( to image file)? '[^']*'", "", str(error))  # the temporary name
+    return OSError(errno.EIO, f"OpenEXR could not write the file ({reason})", str(path))
 
 
 def read_exr(path: Path) -> dict[str, np.ndarray]:

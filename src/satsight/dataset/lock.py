@@ -104,6 +104,16 @@ def _read(fd: int) -> LockHolder | None:
     return LockHolder.parse(os.read(fd, 1 << 16))
 
 
+def _read_holder(fd: int) -> LockHolder | None:
+    """The holder named in a locked file: it writes its name just after locking, so an
+    empty file is read again for up to a second."""
+    for _ in range(20):
+        if (holder := _read(fd)) is not None:
+            return holder
+        time.sleep(0.05)
+    return None
+
+
 def _busy(folder: Path, holder: LockHolder | None) -> SatsightError:
     who = holder.describe() if holder is not None else "holder unknown"
     return SatsightError(
@@ -124,7 +134,7 @@ def refuse_if_locked(folder: Path) -> None:
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except BlockingIOError:
-            holder = _read(fd)
+            holder = _read_holder(fd)
             mine = holder is not None and (holder.pid, holder.host) == (
                 os.getpid(), socket.gethostname())  # fmt: skip
             if not mine:
@@ -171,7 +181,7 @@ class WriterLock:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                holder = _read(fd)
+                holder = _read_holder(fd)
                 os.close(fd)
                 raise _busy(self.folder, holder) from None
             # The holder that just ended may have deleted the file we opened: lock the
