@@ -27,6 +27,7 @@ from satsight.dataset.preview import PreviewStretch
 from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.sun_moon import AU_M
 from satsight.errors import SatsightError
+from satsight.frame_memory import check_frame_memory
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.bodies import MOON_MEAN_RADIUS_M, environment_light_field
 from satsight.lighting.light_field import LightField
@@ -387,6 +388,8 @@ class FrameEngine:
     """
 
     def __init__(self, scenario: Scenario):
+        camera = scenario.camera.build()
+        check_frame_memory(camera.width_px, camera.height_px)  # before the mesh and renderer
         self.scenario = scenario
         self.mesh = build_target(scenario.target, scenario.sun.band_nm)
         self.keypoints_body_m = target_keypoints_body_m(

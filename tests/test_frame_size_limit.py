@@ -1,0 +1,189 @@
+"""The frame-size check: a camera whose frames would need more memory than the machine has
+is refused at once (command line and Python interface), with the estimate and the largest
+size that fits; the paper's 4096 x 4112 camera stays accepted on a 24 GB machine."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from tests.cli_runner import run_satsight
+
+import satsight
+from satsight.errors import SatsightError
+from satsight.frame_memory import (
+    BYTES_PER_PIXEL,
+    FIXED_BYTES,
+    MEMORY_LIMIT_VARIABLE,
+    available_memory_bytes,
+    check_frame_memory,
+    frame_memory_bytes,
+    largest_frame_px,
+    memory_limit_bytes,
+)
+
+GB = 1e9
+MACHINE_24_GB = 24 * 2**30 * 0.9  # a 24 GiB machine with a tenth of it in use
+
+
+def test_estimate_is_the_measured_line() -> None:
+    assert frame_memory_bytes(0, 0) == FIXED_BYTES
+    assert frame_memory_bytes(1000, 2000) - frame_memory_bytes(1000, 1000) == pytest.approx(
+        BYTES_PER_PIXEL * 1e6
+    )
+    assert 164 <= BYTES_PER_PIXEL <= 250  # measured 164-175 (benchmarks/frame_memory.py)
+
+
+def test_paper_camera_fits_a_24_gb_machine_and_16k_does_not() -> None:
+    check_frame_memory(4096, 4112, limit_bytes=MACHINE_24_GB)  # no error
+    with pytest.raises(SatsightError) as caught:
+        check_frame_memory(16384, 16384, limit_bytes=MACHINE_24_GB)
+    message = str(caught.value)
+    width, height = largest_frame_px(16384, 16384, MACHINE_24_GB)
+    assert message.startswith("camera.width_px x camera.height_px = 16384 x 16384 px needs ")
+    assert f"about {frame_memory_bytes(16384, 16384) / GB:.1f} GB" in message
+    assert f"but {MACHINE_24_GB / GB:.1f} GB is available" in message
+    assert f"the largest frame of this shape that fits is {width} x {height} px" in message
+    assert MEMORY_LIMIT_VARIABLE in message
+    assert 4096 < width == height < 16384
+
+
+@pytest.mark.parametrize(
+    ("width", "height", "limit_gb"), [(16384, 16384, 21.7), (4096, 4112, 2.0), (30000, 100, 3.3)]
+)
+def test_largest_size_is_the_largest_that_fits(width, height, limit_gb) -> None:
+    limit = limit_gb * GB
+    w, h = largest_frame_px(width, height, limit)
+    check_frame_memory(w, h, limit_bytes=limit)  # fits
+    with pytest.raises(SatsightError):
+        check_frame_memory(w + 1, h + 1, limit_bytes=limit)
+    assert abs(w / h - width / height) < 0.02 * width / height  # same shape
+
+
+def test_nothing_fits_below_the_fixed_cost() -> None:
+    assert largest_frame_px(64, 64, FIXED_BYTES / 2) == (0, 0)
+    with pytest.raises(SatsightError, match="no frame fits"):
+        check_frame_memory(64, 64, limit_bytes=FIXED_BYTES / 2)
+
+
+def test_available_memory_from_meminfo_and_a_container_limit(tmp_path: Path) -> None:
+    meminfo = "MemTotal:       24000000 kB\nMemFree: 1000 kB\nMemAvailable:   20000000 kB\n"
+    assert available_memory_bytes(meminfo, cgroup=None) == 20000000 * 1024.0
+    (tmp_path / "memory.max").write_text("max\n")
+    (tmp_path / "memory.current").write_text("100\n")
+    assert available_memory_bytes(meminfo, cgroup=tmp_path) == 20000000 * 1024.0
+    (tmp_path / "memory.max").write_text(f"{int(8 * GB)}\n")
+    (tmp_path / "memory.current").write_text(f"{int(1 * GB)}\n")
+    assert available_memory_bytes(meminfo, cgroup=tmp_path) == 7 * GB  # the container's
+    assert available_memory_bytes() > 0  # this machine's
+
+
+def test_limit_variable_replaces_or_turns_off_the_check() -> None:
+    assert memory_limit_bytes({MEMORY_LIMIT_VARIABLE: "64"}) == 64 * GB
+    assert memory_limit_bytes({MEMORY_LIMIT_VARIABLE: "OFF"}) is None
+    check_frame_memory(16384, 16384, environ={MEMORY_LIMIT_VARIABLE: "64"})
+    check_frame_memory(16384, 16384, environ={MEMORY_LIMIT_VARIABLE: "off"})
+    with pytest.raises(SatsightError, match=r"but 8\.0 GB is available"):
+        check_frame_memory(16384, 16384, environ={MEMORY_LIMIT_VARIABLE: "8"})
+    for bad in ("lots", "-3", "0", "nan"):
+        with pytest.raises(SatsightError, match=f"{MEMORY_LIMIT_VARIABLE}='{bad}': expected"):
+            memory_limit_bytes({MEMORY_LIMIT_VARIABLE: bad})
+
+
+def huge_scenario(folder: Path) -> Path:
+    path = folder / "huge.yaml"
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "huge",
+                "camera": {"preset": "high_resolution", "width_px": 16384, "height_px": 16384},
+                "target": {"procedural": {"satellite_class": "two_wings"}},
+                "frames": [{"distance_km": 1.0, "azimuth_deg": 10.0, "elevation_deg": 20.0}],
+            }
+        )
+    )
+    return path
+
+
+def run_with_limit(limit: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
+    previous = os.environ.get(MEMORY_LIMIT_VARIABLE)
+    os.environ[MEMORY_LIMIT_VARIABLE] = limit
+    try:
+        return run_satsight(*args, cwd=cwd)
+    finally:
+        if previous is None:
+            del os.environ[MEMORY_LIMIT_VARIABLE]
+        else:
+            os.environ[MEMORY_LIMIT_VARIABLE] = previous
+
+
+def test_cli_refuses_a_16k_camera_at_once(tmp_path: Path) -> None:
+    config = huge_scenario(tmp_path)
+    for attempt in range(2):  # the same answer each time, and nothing left behind
+        started = time.perf_counter()
+        result = run_with_limit("21", "generate", str(config), "--out", "ds", cwd=tmp_path)
+        seconds = time.perf_counter() - started
+        output = " ".join((result.stdout + result.stderr).split())
+        assert result.returncode == 2, output
+        assert "Traceback" not in output
+        assert "16384 x 16384 px needs about 49.1 GB of memory" in output
+        assert "but 21.0 GB is available; the largest frame of this shape that fits is" in output
+        assert seconds < 60  # refused before rendering (16384^2 took minutes to run out)
+        assert not list((tmp_path / "ds").glob("**/*.png")), attempt
+
+
+def test_cli_names_a_bad_limit_variable(tmp_path: Path) -> None:
+    result = run_with_limit("plenty", "generate", str(huge_scenario(tmp_path)), "--out", "ds",
+                            cwd=tmp_path)  # fmt: skip
+    output = " ".join((result.stdout + result.stderr).split())
+    assert result.returncode == 2 and "Traceback" not in output
+    assert f"{MEMORY_LIMIT_VARIABLE}='plenty': expected a positive number" in output
+
+
+def test_python_interface_refuses_before_loading(monkeypatch, tmp_path: Path) -> None:
+    monkeypatch.setenv(MEMORY_LIMIT_VARIABLE, "21")
+    with pytest.raises(SatsightError, match="16384 x 16384 px needs about"):
+        satsight.Simulator(huge_scenario(tmp_path))
+    # The paper's camera is accepted with the same limit (nothing rendered here).
+    simulator = satsight.Simulator(
+        huge_scenario(tmp_path), {"camera.width_px": 4096, "camera.height_px": 4112}
+    )
+    assert simulator.frame_count == 1
+
+
+_MEASURE = """
+import resource, sys
+from pathlib import Path
+from satsight.api import load_scenario
+from satsight.cli import example_scenario_path
+from satsight.generation import generate_dataset
+frames = [{"distance_km": 0.8, "azimuth_deg": 20.0 + 30.0 * k, "elevation_deg": 25.0}
+          for k in range(5)]
+size = int(sys.argv[1])
+scenario = load_scenario(example_scenario_path(), {
+    "camera.width_px": size, "camera.height_px": size, "frames": frames})
+generate_dataset(scenario, Path(sys.argv[2]))
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+"""
+
+
+def test_estimate_bounds_a_real_run(tmp_path: Path) -> None:
+    """A run of 5 frames at 1024^2 px peaks below the estimate, and not far below it (the
+    estimate is a measurement, not a guess)."""
+    size = 1024
+    result = subprocess.run(
+        [sys.executable, "-c", _MEASURE, str(size), str(tmp_path / "ds")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    peak = int(result.stdout.split()[-1])
+    estimate = frame_memory_bytes(size, size)
+    assert 0.6 * estimate < peak <= estimate, (peak, estimate)
