@@ -1,13 +1,15 @@
-"""Measure the peak memory of one frame against its size; prints JSON.
+"""Measure the peak memory of a run against its frame size; prints JSON.
 
-Usage: python benchmarks/frame_memory.py [--sizes 512,1024,2048] [--outputs all,lean]
+Usage: python benchmarks/frame_memory.py [--sizes 1024,2048,4096] [--frames 6]
+    [--outputs "dn,preview,radiance,depth,normals,masks;dn,masks"] [--overrides JSON]
 
 Each case runs ``satsight generate`` on a copy of the bundled example scenario (the
 procedural two-wing satellite, its render settings) with ``--frames`` frames at 0.8 km and
-the camera made ``size x size`` pixels, in a fresh process, and reads that process's
-peak resident set size (``resource.getrusage(RUSAGE_SELF).ru_maxrss``). A straight line through the peaks
-against the pixel count gives the fixed cost (interpreter, Mitsuba, Dr.Jit's compiled
-kernels, the mesh) and the bytes per pixel that ``satsight.frame_memory`` uses.
+the camera made ``size x size`` pixels, in a fresh process, and reads that process's peak
+resident set size (``resource.getrusage(RUSAGE_SELF).ru_maxrss``). A straight line
+through the peaks against the pixel count gives the fixed cost (interpreter, Mitsuba,
+Dr.Jit's compiled kernels, the mesh) and the bytes per pixel that
+``satsight.frame_memory`` uses.
 """
 
 from __future__ import annotations
