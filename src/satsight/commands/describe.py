@@ -34,20 +34,22 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
     mesh = build_target(scenario.target, scenario.sun.band_nm)
     track = plan_track(scenario, mesh.center_m, mesh.bounding_radius_m)
     rendered = frames_to_render(scenario, track)
-    rows = plan_table_rows(track, with_epoch=False)
+    shown = list(range(len(track)))
+    if len(track) > _PLAN_ROWS_SHOWN:
+        half = _PLAN_ROWS_SHOWN // 2
+        shown = [*range(half), -1, *range(len(track) - half, len(track))]
+    # Rows only for the frames printed: a long plan's table is its first and last rows.
+    rows = plan_table_rows(track, with_epoch=False, frames=[i for i in shown if i >= 0])
     since = f", time after {scenario.epoch_utc}" if scenario.epoch_utc else ""
     table = Table(title=f"frame plan of '{scenario.name}'{since}")
     for column in rows[0]:
         table.add_column(column, justify="right", no_wrap=True)
-    shown = range(len(rows))
-    if len(rows) > _PLAN_ROWS_SHOWN:
-        half = _PLAN_ROWS_SHOWN // 2
-        shown = [*range(half), -1, *range(len(rows) - half, len(rows))]
+    rows_in_order = iter(rows)
     for i in shown:
         if i < 0:
             table.add_row(*(["..."] * len(rows[0])))
         else:
-            table.add_row(*(str(value) for value in rows[i].values()))
+            table.add_row(*(str(value) for value in next(rows_in_order).values()))
     print_tables([table])
     out_dir.mkdir(parents=True, exist_ok=True)
     csv_path = out_dir / "plan.csv"

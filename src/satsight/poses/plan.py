@@ -69,11 +69,16 @@ from satsight.poses.samplers import (
     DistanceInterval,
     default_intervals,
     interval_name_for_range,
+    interval_names_for_ranges,
     rssf_samples,
     sspt_angle_times_s,
     sspt_times_s,
 )
 from satsight.poses.track import FLAG_FIELDS, PoseTrack
+
+# Frames planned together past the flight (see `_orbital_track`): the Earth's orientation
+# takes ~22 kB a frame while skyfield computes it, so a chunk holds ~100 MB at most.
+PLAN_CHUNK_FRAMES = 4096
 
 
 def _unit_rows(v: np.ndarray) -> np.ndarray:
@@ -423,82 +428,120 @@ def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
     )  # fmt: skip
 
 
-def _orbital_track(scenario: Scenario, center_body: np.ndarray) -> PoseTrack:
+def _orbital_track(
+    scenario: Scenario, center_body: np.ndarray, chunk_frames: int = PLAN_CHUNK_FRAMES
+) -> PoseTrack:
     if scenario.sampler.kind == "rssf":
         flight = _rssf_flight(scenario, center_body)
     else:
         flight = _sspt_flight(scenario, center_body)
-    times, r_t, v_t = flight.times_s, flight.r_target_m, flight.v_target_m_s
-    center, r_obs = flight.center_m, flight.r_camera_m
+    n = len(flight.times_s)
+    if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, int) or chunk_frames < 1:
+        raise SatsightError(f"chunk_frames must be a whole number >= 1, got {chunk_frames!r}")
+    keep = scenario.visibility.on_fail == "keep"
+    limits = scenario.visibility.limits()
+    columns = {name: np.empty((n, 4)) for name in ("q_cam_from_body", "q_cam_from_gcrs")}
+    for name in ("t_cam_from_body_m", "rho_rtn_m", "sun_from_target_cam",
+                 "earth_from_target_cam", "moon_from_target_cam"):  # fmt: skip
+        columns[name] = np.empty((n, 3))
+    for name in (
+        "range_m", "phase_angle_rad", "sunlit_fraction", "los_clearance_m",
+        "sun_boresight_angle_rad", "sun_distance_m", "earth_distance_m", "moon_distance_m",
+    ):  # fmt: skip
+        columns[name] = np.empty(n)
+    for name in FLAG_FIELDS:
+        columns[name] = np.zeros(n, dtype=bool)
+    epochs: list[str] = []
+    # Every per-frame quantity past the flight is a function of that frame alone: computed a
+    # chunk of frames at a time, the plan holds a few arrays per frame and the temporary
+    # arrays of one chunk (the Earth's orientation needs ~22 kB a frame while it is computed).
+    for start in range(0, n, chunk_frames):
+        frames = slice(start, min(n, start + chunk_frames))
+        epochs += _plan_chunk(scenario, flight, frames, columns, limits, keep)
+    r_obs, v_obs, times = flight.r_camera_m, flight.v_camera_m_s, flight.times_s
+    interval_names = flight.interval_names
+    del flight  # the target's states and attitude are no longer needed
+    if interval_names is None:
+        interval_names = interval_names_for_ranges(
+            columns["range_m"], default_intervals(include_hover=True)
+        )
+    for array in (*columns.values(), r_obs, v_obs, times):
+        if array.flags.owndata:
+            array.flags.writeable = False  # handed to the PoseTrack without a copy
+    return PoseTrack(
+        time_s=times,
+        epoch_utc=tuple(epochs),
+        interval=interval_names,
+        camera_position_gcrs_m=r_obs,
+        camera_velocity_gcrs_m_s=v_obs,
+        **columns,
+    )
+
+
+def _plan_chunk(
+    scenario: Scenario,
+    flight: _Flight,
+    frames: slice,
+    columns: dict[str, np.ndarray],
+    limits,
+    keep: bool,
+) -> list[str]:
+    """Fill ``columns[...][frames]`` for one chunk of frames; returns their UTC epochs."""
+    times = flight.times_s[frames]
+    r_t, v_t = flight.r_target_m[frames], flight.v_target_m_s[frames]
+    center, r_obs = flight.center_m[frames], flight.r_camera_m[frames]
     instants = epoch_times(scenario.epoch_utc, times)
     # The Earth's orientation per frame: the WGS-84 ellipsoid for the inside-the-Earth test,
     # occultation and shadow.
     # (Nutation costs ~70 us an instant; RSSF frames all share one.)
     unique_times, inverse = np.unique(times, return_inverse=True)
-    R_itrs = R_itrs_from_gcrs(epoch_times(scenario.epoch_utc, unique_times))[inverse]
+    unique_instants = epoch_times(scenario.epoch_utc, unique_times)
+    R_itrs = R_itrs_from_gcrs(unique_instants)[inverse]
     buried = np.flatnonzero(np.atleast_1d(inside_earth(r_obs, R_itrs)))
     if buried.size:
         i = int(buried[0])
         height_m = float(geodetic_height_m((R_itrs[i] @ r_obs[i])[None, :])[0][0])
         raise SatsightError(
-            f"frame {i} (t = {times[i]:.1f} s) puts the camera inside the Earth "
+            f"frame {frames.start + i} (t = {times[i]:.1f} s) puts the camera inside the Earth "
             f"({-height_m / 1e3:.1f} km below the WGS-84 surface); check the observer's "
             "mode and distances"
         )
     reference, reference_axis = camera_reference(
-        flight.roll_policy, flight.reference_r_m, flight.reference_v_m_s
+        flight.roll_policy, flight.reference_r_m[frames], flight.reference_v_m_s[frames]
     )
     q_gcrs_from_cam = pointing_gcrs_from_cam(
-        r_obs, center, reference, roll_rad=flight.roll_rad, reference_axis=reference_axis
+        r_obs, center, reference, roll_rad=flight.roll_rad[frames], reference_axis=reference_axis
     )
-    q_cam_from_body, t_cam_from_body = cam_from_body(
-        q_gcrs_from_cam, flight.q_gcrs_from_body, r_obs, r_t
+    columns["q_cam_from_body"][frames], columns["t_cam_from_body_m"][frames] = cam_from_body(
+        q_gcrs_from_cam, flight.q_gcrs_from_body[frames], r_obs, r_t
     )
-    sun = sun_position_gcrs_m(instants)
-    moon = moon_position_gcrs_m(instants)
+    # The Sun and the Moon at each distinct instant (all RSSF frames share one).
+    sun = sun_position_gcrs_m(unique_instants)[inverse]
+    moon = moon_position_gcrs_m(unique_instants)[inverse]
     R_cam_from_gcrs = np.swapaxes(matrix_from_quaternion(q_gcrs_from_cam), -1, -2)
 
-    def from_target_cam(position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def from_target_cam(body: str, position: np.ndarray) -> None:
         offset = position - center
         distance = np.linalg.norm(offset, axis=1)
-        return np.einsum("nij,nj->ni", R_cam_from_gcrs, offset / distance[:, None]), distance
+        columns[f"{body}_from_target_cam"][frames] = np.einsum(
+            "nij,nj->ni", R_cam_from_gcrs, offset / distance[:, None]
+        )
+        columns[f"{body}_distance_m"][frames] = distance
 
-    sun_dir, sun_dist = from_target_cam(sun)
-    earth_dir, earth_dist = from_target_cam(np.zeros_like(center))
-    moon_dir, moon_dist = from_target_cam(moon)
-    rho_rtn = np.einsum("nij,nj->ni", rtn_from_inertial(r_t, v_t), r_obs - center)
-    visibility = assess_visibility(
-        center, r_obs, sun, scenario.visibility.limits(), R_itrs_from_gcrs=R_itrs
+    from_target_cam("sun", sun)
+    from_target_cam("earth", np.zeros_like(center))
+    from_target_cam("moon", moon)
+    columns["rho_rtn_m"][frames] = np.einsum(
+        "nij,nj->ni", rtn_from_inertial(r_t, v_t), r_obs - center
     )
-    flags = {name: np.asarray(getattr(visibility, name), dtype=bool) for name in FLAG_FIELDS}
-    if scenario.visibility.on_fail == "keep":
-        flags = {name: np.zeros(len(times), dtype=bool) for name in FLAG_FIELDS}
-    range_m = np.linalg.norm(r_obs - center, axis=1)
-    interval_names = flight.interval_names
-    if interval_names is None:
-        intervals = default_intervals(include_hover=True)
-        interval_names = tuple(interval_name_for_range(r, intervals) for r in range_m)
+    visibility = assess_visibility(center, r_obs, sun, limits, R_itrs_from_gcrs=R_itrs)
+    if not keep:
+        for name in FLAG_FIELDS:
+            columns[name][frames] = np.asarray(getattr(visibility, name), dtype=bool)
+    columns["range_m"][frames] = np.linalg.norm(r_obs - center, axis=1)
+    for name in ("phase_angle_rad", "sunlit_fraction", "los_clearance_m"):
+        columns[name][frames] = np.asarray(getattr(visibility, name))
+    columns["sun_boresight_angle_rad"][frames] = np.asarray(visibility.sun_boresight_angle_rad)
+    columns["q_cam_from_gcrs"][frames] = quaternion_conjugate(q_gcrs_from_cam)
     epochs = format_epoch_utc(instants, places=3)
-    return PoseTrack(
-        time_s=times,
-        epoch_utc=tuple(epochs) if isinstance(epochs, list) else (epochs,),
-        q_cam_from_body=q_cam_from_body,
-        t_cam_from_body_m=t_cam_from_body,
-        sun_from_target_cam=sun_dir,
-        sun_distance_m=sun_dist,
-        earth_from_target_cam=earth_dir,
-        earth_distance_m=earth_dist,
-        moon_from_target_cam=moon_dir,
-        moon_distance_m=moon_dist,
-        rho_rtn_m=rho_rtn,
-        range_m=range_m,
-        phase_angle_rad=np.asarray(visibility.phase_angle_rad),
-        sunlit_fraction=np.asarray(visibility.sunlit_fraction),
-        los_clearance_m=np.asarray(visibility.los_clearance_m),
-        sun_boresight_angle_rad=np.asarray(visibility.sun_boresight_angle_rad),
-        interval=interval_names,
-        q_cam_from_gcrs=quaternion_conjugate(q_gcrs_from_cam),
-        camera_position_gcrs_m=r_obs,
-        camera_velocity_gcrs_m_s=flight.v_camera_m_s,
-        **flags,
-    )
+    return list(epochs) if isinstance(epochs, list) else [epochs]

@@ -16,6 +16,12 @@
   phase rejected, and "visible"), shaded where true, above the sunlit fraction and the
   Sun-boresight angle.
 
+A plan of more than :data:`MAX_PLOTTED_FRAMES` frames is drawn from an even subset of its
+frames (the first and the last included; :func:`plot_frame_indices`), so a 10^6-frame plan
+plots in seconds; the visibility bands are then reduced bin by bin, each drawn frame standing
+for the frames up to the next one, and a band is shaded where any frame of a bin has the
+flag. The counts in the band labels are always those of the whole plan.
+
 Time axes are in seconds after the scenario epoch, in minutes when the track spans more
 than 600 s, and the frame index when every frame is at the same instant (frames of a
 body-frame view grid are all at one epoch).
@@ -27,6 +33,7 @@ every frame, in SI units and degrees, with the unit in each column name.
 from __future__ import annotations
 
 import csv
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +59,8 @@ LOG_RANGE_RATIO = 10.0
 MIN_BOX_SIDE_3D = 0.2
 # Up to this many frames, curves also carry a marker per frame.
 MARKERS_UP_TO = 200
+# Longer plans are drawn from an even subset of this many frames (module docstring).
+MAX_PLOTTED_FRAMES = 10_000
 
 # Short names of the failing flags in the table's "visible" column.
 FLAG_SHORT_NAMES = {
@@ -93,6 +102,10 @@ def write_plan_plots(track: PoseTrack, out_dir: Path, title: str) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     heading = title.replace("$", r"\$")
+    sample = plot_frame_indices(len(track))
+    shown = track if sample.size == len(track) else track.select(sample)
+    if shown is not track:
+        heading += f" ({sample.size} of {len(track)} frames drawn)"
     paths = []
     drawers = [(RANGE_PHASE_FILE, _draw_range_phase), (VISIBILITY_FILE, _draw_visibility)]
     if has_rtn(track):
@@ -100,7 +113,7 @@ def write_plan_plots(track: PoseTrack, out_dir: Path, title: str) -> list[Path]:
     for name, draw in drawers:
         fig = plt.figure(layout="constrained")
         try:
-            draw(fig, track)
+            draw(fig, track, shown, sample)
             fig.suptitle(heading)
             path = out_dir / name
             fig.savefig(path, dpi=PLOT_DPI, facecolor="white")
@@ -110,13 +123,36 @@ def write_plan_plots(track: PoseTrack, out_dir: Path, title: str) -> list[Path]:
     return paths
 
 
+def plot_frame_indices(count: int, limit: int = MAX_PLOTTED_FRAMES) -> np.ndarray:
+    """The frames a plot draws, (M,) int64 ascending: all ``count`` of them up to ``limit``,
+    else ``limit`` evenly spread ones, the first and the last included."""
+    if limit < 2:
+        raise SatsightError(f"a plot needs at least 2 frames to draw, got limit={limit}")
+    if count <= limit:
+        return np.arange(count, dtype=np.int64)
+    return np.unique(np.round(np.linspace(0.0, count - 1.0, limit)).astype(np.int64))
+
+
+def _plot_x(shown: PoseTrack, sample: np.ndarray) -> tuple[np.ndarray, str]:
+    """`time_axis` of the drawn frames; a frame-index axis keeps the plan's indices."""
+    x, label = time_axis(shown)
+    if label.startswith("frame index"):
+        x = sample.astype(np.float64)
+    return x, label
+
+
 def has_rtn(track: PoseTrack) -> bool:
     """Whether any frame has a camera position in the target's RTN frame."""
     return bool(np.isfinite(track.rho_rtn_m).all(axis=1).any())
 
 
-def plan_table_rows(track: PoseTrack, with_epoch: bool = True) -> list[dict]:
+def plan_table_rows(
+    track: PoseTrack, with_epoch: bool = True, frames: Sequence[int] | None = None
+) -> list[dict]:
     """One dict per frame for a printed table, numbers rounded for display.
+
+    ``frames``: the frame indices to give rows for, in that order (default: every frame; a
+    printed table of a long plan asks for its first and last few only).
 
     Keys, in order: frame, time_s (0.1 s), epoch_utc (only when the track has epochs and
     ``with_epoch``), range_km (to the metre), phase_deg (0.1 deg), sunlit (fraction 0..1,
@@ -126,7 +162,7 @@ def plan_table_rows(track: PoseTrack, with_epoch: bool = True) -> list[dict]:
     with_epoch = with_epoch and any(track.epoch_utc)
     visible = track.visible
     rows = []
-    for i in range(len(track)):
+    for i in range(len(track)) if frames is None else (int(k) for k in frames):
         row: dict = {"frame": i, "time_s": round(float(track.time_s[i]), 1)}
         if with_epoch:
             row["epoch_utc"] = track.epoch_utc[i]
@@ -258,7 +294,7 @@ def _label_runs(labels: tuple[str, ...]) -> list[tuple[int, int, str]]:
 # --- figures -----------------------------------------------------------------------------
 
 
-def _draw_trajectory(fig, track: PoseTrack) -> None:
+def _draw_trajectory(fig, _track: PoseTrack, track: PoseTrack, _sample: np.ndarray) -> None:
     from matplotlib.ticker import MaxNLocator
 
     fig.set_size_inches(12.0, 10.5)
@@ -318,12 +354,12 @@ def _draw_trajectory(fig, track: PoseTrack) -> None:
     fig.legend(*ax3.get_legend_handles_labels(), loc="outside lower center", ncols=5)
 
 
-def _draw_range_phase(fig, track: PoseTrack) -> None:
+def _draw_range_phase(fig, _track: PoseTrack, track: PoseTrack, sample: np.ndarray) -> None:
     from matplotlib.lines import Line2D
     from matplotlib.ticker import LogFormatter
 
     fig.set_size_inches(11.0, 7.5)
-    x, xlabel = time_axis(track)
+    x, xlabel = _plot_x(track, sample)
     visible = track.visible
     range_km = track.range_m / 1000.0
     phase_deg = np.degrees(track.phase_angle_rad)
@@ -420,19 +456,24 @@ def _shade_intervals(ax, x: np.ndarray, intervals: tuple[str, ...]) -> None:
             )
 
 
-def _draw_visibility(fig, track: PoseTrack) -> None:
+def _draw_visibility(fig, track: PoseTrack, shown: PoseTrack, sample: np.ndarray) -> None:
     fig.set_size_inches(11.0, 7.0)
-    x, xlabel = time_axis(track)
+    x, xlabel = _plot_x(shown, sample)
     edges = _cell_edges(x)
     n = len(track)
     rows = [(_FLAG_LABELS[name], getattr(track, name), _FLAG_COLOR) for name in FLAG_FIELDS]
     rows.append(("visible", track.visible, _VISIBLE_COLOR))
+    # Each drawn frame's bin: the plan's frames from it up to the next drawn one.
+    rows = [
+        (label, mask, color, np.logical_or.reduceat(mask, sample) if shown is not track else mask)
+        for label, mask, color in rows
+    ]
 
     ax_flags, ax_sun = fig.subplots(2, 1, sharex=True, height_ratios=(1.0, 1.2))
     ticks, tick_labels = [], []
-    for k, (label, mask, color) in enumerate(rows):
+    for k, (label, mask, color, binned) in enumerate(rows):
         y = len(rows) - 1 - k
-        spans = [(edges[a], edges[b + 1] - edges[a]) for a, b in _runs(mask)]
+        spans = [(edges[a], edges[b + 1] - edges[a]) for a, b in _runs(binned)]
         if spans:
             ax_flags.broken_barh(spans, (y - 0.4, 0.8), color=color, alpha=0.75, linewidth=0)
         ax_flags.axhline(y - 0.5, color="0.8", linewidth=0.5)
@@ -445,7 +486,7 @@ def _draw_visibility(fig, track: PoseTrack) -> None:
 
     marker = "." if n <= MARKERS_UP_TO else None
     (sunlit,) = ax_sun.plot(
-        x, track.sunlit_fraction, color="tab:orange", marker=marker, label="sunlit fraction"
+        x, shown.sunlit_fraction, color="tab:orange", marker=marker, label="sunlit fraction"
     )
     ax_sun.set_ylim(-0.03, 1.03)
     ax_sun.set_ylabel("sunlit fraction [0..1]")
@@ -453,7 +494,7 @@ def _draw_visibility(fig, track: PoseTrack) -> None:
     ax_angle = ax_sun.twinx()
     (angle,) = ax_angle.plot(
         x,
-        np.degrees(track.sun_boresight_angle_rad),
+        np.degrees(shown.sun_boresight_angle_rad),
         color="tab:purple",
         marker=marker,
         label="Sun-boresight angle",

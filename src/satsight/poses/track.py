@@ -103,8 +103,12 @@ class PoseTrack:
             value = np.asarray(getattr(self, name), dtype=dtype)
             if value.shape != shape:
                 raise SatsightError(f"PoseTrack.{name} must have shape {shape}, got {value.shape}")
-            value = value.copy()
-            value.flags.writeable = False
+            # A read-only array that owns its memory is kept as it is (the planner hands over
+            # its freshly built columns so); any other is copied, so the caller's later
+            # writes cannot reach the track.
+            if value.flags.writeable or not value.flags.owndata:
+                value = value.copy()
+                value.flags.writeable = False
             object.__setattr__(self, name, value)
 
         for name in ("q_cam_from_body", "q_cam_from_gcrs"):
