@@ -1,8 +1,8 @@
 """Planning at scale: memory and time linear in the frame count, chunks equal to the whole.
 
 The documented maximum is 10^6 frames (satsight.config.orbital.MAX_FRAMES). Peak memory is
-measured in a child process (its ru_maxrss: the whole interpreter, imports included), so
-nothing else in the test run counts; timings are printed, not asserted, except for a
+measured in a child process (its peak resident memory: the whole interpreter, imports
+included), so nothing else in the test run counts; timings are printed, not asserted, except for a
 generous N-versus-2N ratio.
 """
 
@@ -41,8 +41,8 @@ ONE_GIB = 1024**3
 RELATIVE_1E12 = 1e-12
 
 # Plans a scenario with its sampler's frame_count replaced, in a fresh interpreter, and
-# prints {"frames": ..., "seconds": [...], "max_rss_bytes": ...} (Linux reports ru_maxrss
-# in KiB).
+# prints {"frames": ..., "seconds": [...], "max_rss_bytes": ...}: the child's peak resident
+# memory (Linux reports VmHWM and ru_maxrss in KiB).
 _CHILD = textwrap.dedent(
     """
     import json, resource, sys, time
@@ -68,7 +68,14 @@ _CHILD = textwrap.dedent(
         seconds.append(time.perf_counter() - t0)
         frames.append(len(track))
         del track
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    # VmHWM: this process's own peak. ru_maxrss would also keep the parent's peak, which
+    # Linux carries across exec.
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            line = next(x for x in status if x.startswith("VmHWM:"))
+        rss = int(line.split()[1]) * 1024
+    except (OSError, StopIteration):
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(json.dumps({"frames": frames, "seconds": seconds, "max_rss_bytes": rss}))
     """
 )
@@ -373,3 +380,21 @@ def test_plan_command_of_a_long_plan_prints_a_short_table(tmp_path: Path) -> Non
     assert sorted(p.name for p in out.glob("*.png")) == [
         "range_phase.png", "trajectory_rtn.png", "visibility.png"
     ]  # fmt: skip
+
+
+def test_plan_csv_in_chunks_writes_every_float_as_repr(tmp_path: Path, monkeypatch) -> None:
+    from satsight.poses import plan_plots
+
+    scenario = _scenario("approach.yaml", 40)
+    track = plan.plan_track(scenario, build_target(scenario.target).center_m)
+    whole = plan_plots.write_plan_csv(track, tmp_path / "whole.csv").read_bytes()
+    monkeypatch.setattr(plan_plots, "CSV_CHUNK_ROWS", 7)
+    chunked = plan_plots.write_plan_csv(track, tmp_path / "chunked.csv").read_bytes()
+    assert chunked == whole
+    lines = whole.decode("utf-8").splitlines()
+    assert len(lines) == 41
+    header, row = lines[0].split(","), lines[23].split(",")
+    assert row[header.index("frame")] == "22"
+    assert row[header.index("range_m")] == repr(float(track.range_m[22]))
+    assert row[header.index("rho_rtn_n_m")] == repr(float(track.rho_rtn_m[22, 2]))
+    assert row[header.index("visible")] == ("true" if track.visible[22] else "false")

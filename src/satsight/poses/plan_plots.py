@@ -61,6 +61,8 @@ MIN_BOX_SIDE_3D = 0.2
 MARKERS_UP_TO = 200
 # Longer plans are drawn from an even subset of this many frames (module docstring).
 MAX_PLOTTED_FRAMES = 10_000
+# Rows of plan.csv formatted together.
+CSV_CHUNK_ROWS = 8192
 
 # Short names of the failing flags in the table's "visible" column.
 FLAG_SHORT_NAMES = {
@@ -213,38 +215,45 @@ def write_plan_csv(track: PoseTrack, path: Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     visible = track.visible
-
-    def number(x: float) -> str:
-        return repr(float(x))
-
-    def flag(x: bool) -> str:
-        return "true" if x else "false"
-
+    n = len(track)
     with path.open("w", newline="", encoding="utf-8") as stream:
         writer = csv.writer(stream)
         writer.writerow(plan_csv_columns())
-        for i in range(len(track)):
-            row = [
-                str(i),
-                number(track.time_s[i]),
-                track.epoch_utc[i],
-                track.interval[i],
-                number(track.range_m[i]),
-                number(np.degrees(track.phase_angle_rad[i])),
-                number(track.sunlit_fraction[i]),
-                number(track.los_clearance_m[i]),
-                number(np.degrees(track.sun_boresight_angle_rad[i])),
-                *(flag(getattr(track, name)[i]) for name in FLAG_FIELDS),
-                flag(visible[i]),
+        # Column by column, a chunk of rows at a time: the same text as one float at a time
+        # (repr of each float64), several times faster for long plans.
+        for start in range(0, n, CSV_CHUNK_ROWS):
+            rows = slice(start, min(n, start + CSV_CHUNK_ROWS))
+            columns = [
+                map(str, range(rows.start, rows.stop)),
+                _texts(track.time_s[rows]),
+                track.epoch_utc[rows],
+                track.interval[rows],
+                _texts(track.range_m[rows]),
+                _texts(np.degrees(track.phase_angle_rad[rows])),
+                _texts(track.sunlit_fraction[rows]),
+                _texts(track.los_clearance_m[rows]),
+                _texts(np.degrees(track.sun_boresight_angle_rad[rows])),
+                *(_flag_texts(getattr(track, name)[rows]) for name in FLAG_FIELDS),
+                _flag_texts(visible[rows]),
+                *(_texts(track.q_cam_from_body[rows, k]) for k in range(4)),
+                *(_texts(track.t_cam_from_body_m[rows, k]) for k in range(3)),
+                *(_texts(track.rho_rtn_m[rows, k]) for k in range(3)),
             ]
-            row += [number(v) for v in track.q_cam_from_body[i]]
-            row += [number(v) for v in track.t_cam_from_body_m[i]]
-            row += [number(v) for v in track.rho_rtn_m[i]]
             for body in ("sun", "earth", "moon"):
-                row += [number(v) for v in getattr(track, f"{body}_from_target_cam")[i]]
-                row.append(number(getattr(track, f"{body}_distance_m")[i]))
-            writer.writerow(row)
+                columns += [_texts(getattr(track, f"{body}_from_target_cam")[rows, k])
+                            for k in range(3)]  # fmt: skip
+                columns.append(_texts(getattr(track, f"{body}_distance_m")[rows]))
+            writer.writerows(zip(*columns, strict=True))
     return path
+
+
+def _texts(values: np.ndarray) -> list[str]:
+    """Each float at full precision, as ``repr`` writes it ("nan", "inf" where not defined)."""
+    return [repr(x) for x in values.tolist()]
+
+
+def _flag_texts(values: np.ndarray) -> list[str]:
+    return ["true" if x else "false" for x in values.tolist()]
 
 
 # --- time axis ---------------------------------------------------------------------------
