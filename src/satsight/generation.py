@@ -483,7 +483,8 @@ def generate_dataset(
         if workers is not None or scheduler is not None:
             from satsight.distributed import dask_client
 
-            client = stack.enter_context(dask_client(workers, scheduler))
+            frame_px = (engine.camera.width_px, engine.camera.height_px)
+            client = stack.enter_context(dask_client(workers, scheduler, out_dir, frame_px))
         complete = prepare_folder(out_dir, manifest, scenario, overwrite, resume)
         _render_missing_frames(engine, out_dir, manifest, shard or Shard(0, 1), client, summary,
                                stop, on_frame_done, complete)  # fmt: skip
