@@ -341,7 +341,7 @@ def test_plots_of_a_million_frames_draw_a_subset_and_keep_every_flag(
 
 
 def test_million_frame_rssf_plan_stays_under_1_gib() -> None:
-    # About 70 s on 2 cores (10^5 frames: ~7 s), ~0.8 GB resident of which ~0.25 GB imports.
+    # About 16 s on 2 cores (10^5 frames: ~1 s), ~0.8 GB resident of which ~0.25 GB imports.
     report = _plan_in_child("rssf_dataset.yaml", MAX_FRAMES)
     assert report["frames"] == [MAX_FRAMES]
     assert report["max_rss_bytes"] < ONE_GIB
@@ -349,9 +349,9 @@ def test_million_frame_rssf_plan_stays_under_1_gib() -> None:
 
 @pytest.mark.slow
 def test_million_frame_sspt_plan_stays_under_1_gib() -> None:
-    # About 3 minutes on 2 cores: the IAU 2000A nutation of the Earth's orientation takes
-    # ~70 us a distinct instant and RK4 adds one shortened step per frame (design.md,
-    # "Planning at scale"). Peak ~0.8 GB resident, imports included.
+    # About 65 s on 2 cores (up to 3 minutes when they are busy): the IAU 2000A nutation of
+    # the Earth's orientation takes ~70 us a distinct instant and RK4 adds one shortened step
+    # per frame (design.md, "Planning at scale"). Peak ~0.84 GB resident, imports included.
     report = _plan_in_child("fly_around.yaml", MAX_FRAMES)
     assert report["frames"] == [MAX_FRAMES]
     assert report["max_rss_bytes"] < ONE_GIB
