@@ -183,6 +183,7 @@ def _probe_scheduler(address: str, timeout_s: float = _CONNECT_TIMEOUT_S) -> Non
                 "the dashboard's 8787 is an HTTP server)"
             )
         if len(first) < 16 or not _looks_like_dask(first):
+            first += _receive(stream, 48, 0.5) or b""  # the rest of a greeting line
             shown = first.split(b"\r\n", 1)[0][:40].decode("ascii", "replace")
             kind = "an HTTP server" if first.startswith(b"HTTP/") else "a program"
             raise SatsightError(
@@ -267,7 +268,8 @@ def local_worker_cap(
         f"per worker for {width_px} x {height_px} px frames"
     )  # fmt: skip
     return cap, (
-        f"--workers {requested}: this machine holds {cap} ({cores} cores{memory}); "
+        f"--workers {requested}: this machine holds {cap} ({cores} "
+        f"core{'s' * (cores != 1)}{memory}); "
         f"starting {cap} worker processes"
     )
 
@@ -430,7 +432,8 @@ def run_distributed(
     workers = len(client.scheduler_info().get("workers", {}))
     window = max(1, workers) * (1 + _QUEUED_PER_WORKER)
     key = scenario_sha256(scenario_json)[:16]
-    shared = [client.scatter(scenario_json, broadcast=True, hash=False)]
+    # One object (a dict itself would be scattered value by value, under its own keys).
+    shared = [client.scatter([scenario_json], broadcast=True, hash=False)[0]]
     pending = iter(todo)
     futures = as_completed()
     submitted: dict = {}  # future -> frame index
@@ -507,7 +510,7 @@ def _resubmit_lost_frame(client, index, attempts, error, shared, scenario_json) 
         return
     try:
         client.wait_for_workers(1, timeout=6 * _CONNECT_TIMEOUT_S)
-        shared[0] = client.scatter(scenario_json, broadcast=True, hash=False)
+        shared[0] = client.scatter([scenario_json], broadcast=True, hash=False)[0]
     except (OSError, TimeoutError) as failure:
         raise SatsightError(
             f"the Dask cluster lost its workers and has none back after "
