@@ -98,6 +98,9 @@ def test_scheduler_address_forms_dask_accepts(tmp_path: Path) -> None:
     file = tmp_path / "scheduler.json"
     file.write_text('{"type": "Scheduler", "address": "tcp://10.1.2.3:8786"}')
     assert scheduler_address(str(file)) == "tcp://10.1.2.3:8786"
+    other_name = tmp_path / "cluster-info"
+    other_name.write_text('{"address": "10.1.2.4:8786"}')
+    assert scheduler_address(str(other_name)) == "tcp://10.1.2.4:8786"
 
 
 @pytest.mark.parametrize(

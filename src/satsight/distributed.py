@@ -101,7 +101,7 @@ def scheduler_address(text: str) -> str:
     )
     if not text:
         raise SatsightError(f"--scheduler is empty: {usage}")
-    if "://" not in text and text.endswith(".json"):
+    if "://" not in text and (text.endswith(".json") or Path(text).is_file()):
         return _scheduler_file_address(Path(text), usage)
     scheme = text.split("://", 1)[0] if "://" in text else "tcp"
     if scheme not in _SCHEMES:
