@@ -6,7 +6,8 @@ Usage: python benchmarks/frame_memory.py [--sizes 1024,2048,4096] [--frames 6]
 Each case runs ``satsight generate`` on a copy of the bundled example scenario (the
 procedural two-wing satellite, its render settings) with ``--frames`` frames at 0.8 km and
 the camera made ``size x size`` pixels, in a fresh process, and reads that process's peak
-resident set size (``resource.getrusage(RUSAGE_SELF).ru_maxrss``). A straight line
+resident set size (``VmHWM`` of /proc/self/status: its own, where ``ru_maxrss`` would
+carry over a larger parent's across exec). A straight line
 through the peaks against the pixel count gives the fixed cost (interpreter, Mitsuba,
 Dr.Jit's compiled kernels, the mesh) and the bytes per pixel that
 ``satsight.frame_memory`` uses.
@@ -23,7 +24,7 @@ import sys
 import tempfile
 
 _CHILD = """
-import json, resource, sys, time
+import json, sys, time
 from pathlib import Path
 from satsight.api import load_scenario
 from satsight.cli import example_scenario_path
@@ -39,7 +40,9 @@ scenario = load_scenario(example_scenario_path(), {
 start = time.perf_counter()
 generate_dataset(scenario, out)
 seconds = time.perf_counter() - start
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, seconds)
+status = Path("/proc/self/status").read_text().splitlines()
+peak = next(int(line.split()[1]) for line in status if line.startswith("VmHWM:")) * 1024
+print(peak, seconds)
 """
 
 
@@ -95,6 +98,8 @@ def main() -> None:
     )
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
+    if len(set(sizes)) < 2:
+        parser.error("--sizes needs at least two different sizes to fit a line")
     report = {
         "machine": platform.platform(),
         "cpus": os.cpu_count(),

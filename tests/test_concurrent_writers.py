@@ -16,9 +16,9 @@ import time
 from pathlib import Path
 
 import pytest
-import yaml
 
 from cli_runner import run_satsight
+from dataset_files import write_scenario_yaml
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
 from satsight.dataset.lock import LOCK_NAME, WriterLock
@@ -48,9 +48,7 @@ def scenario_dict() -> dict:
 
 @pytest.fixture(scope="module")
 def scenario_file(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("scenario") / "scenario.yaml"
-    path.write_text(yaml.safe_dump(scenario_dict()), encoding="utf-8")
-    return path
+    return write_scenario_yaml(tmp_path_factory.mktemp("scenario"), scenario_dict())
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ single-process run byte for byte, or for leaving nothing behind."""
 
 from __future__ import annotations
 
-import hashlib
 import http.server
 import logging
 import os
@@ -21,9 +20,9 @@ import time
 from pathlib import Path
 
 import pytest
-import yaml
 
 from cli_runner import run_satsight
+from dataset_files import file_hashes, write_scenario_yaml
 from satsight import distributed
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
@@ -58,14 +57,6 @@ def scenario_dict() -> dict:
     }
 
 
-def file_hashes(root: Path) -> dict[str, str]:
-    return {
-        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(root.rglob("*"))
-        if p.is_file()
-    }
-
-
 @pytest.fixture(scope="module")
 def reference_hashes(tmp_path_factory) -> dict[str, str]:
     """The files of a single-process run."""
@@ -76,9 +67,7 @@ def reference_hashes(tmp_path_factory) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def scenario_file(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("scenario") / "scenario.yaml"
-    path.write_text(yaml.safe_dump(scenario_dict()), encoding="utf-8")
-    return path
+    return write_scenario_yaml(tmp_path_factory.mktemp("scenario"), scenario_dict())
 
 
 def cluster(**options):

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from scipy.ndimage import binary_dilation
 
 from cli_runner import run_satsight
+from dataset_files import file_hashes, write_scenario_yaml
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.image_files import read_exr, read_png
 from satsight.dataset.journal import read_journal
@@ -59,20 +59,9 @@ def scenario_dict(**outputs) -> dict:
     }
 
 
-def file_hashes(root: Path) -> dict[str, str]:
-    """Relative path -> SHA-256 of every file under ``root`` (hidden files included)."""
-    return {
-        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(root.rglob("*"))
-        if p.is_file()
-    }
-
-
 @pytest.fixture(scope="module")
 def scenario_file(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("scenario") / "scenario.yaml"
-    path.write_text(yaml.safe_dump(scenario_dict()), encoding="utf-8")
-    return path
+    return write_scenario_yaml(tmp_path_factory.mktemp("scenario"), scenario_dict())
 
 
 @pytest.fixture(scope="module")

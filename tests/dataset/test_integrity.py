@@ -12,12 +12,12 @@ import shutil
 from pathlib import Path
 
 import pytest
-import yaml
 
 import satsight.dataset.image_files as image_files
 import satsight.dataset.journal as journal
 import satsight.dataset.manifest as manifest
 import satsight.dataset.merge as merge
+from dataset_files import file_hashes, write_scenario_yaml
 from satsight.cli import main
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
@@ -44,20 +44,9 @@ def scenario_dict() -> dict:
     }
 
 
-def file_hashes(root: Path) -> dict[str, str]:
-    """Relative path -> SHA-256 of every file under ``root`` (hidden files included)."""
-    return {
-        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(root.rglob("*"))
-        if p.is_file()
-    }
-
-
 @pytest.fixture(scope="module")
 def scenario_file(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("scenario") / "scenario.yaml"
-    path.write_text(yaml.safe_dump(scenario_dict()), encoding="utf-8")
-    return path
+    return write_scenario_yaml(tmp_path_factory.mktemp("scenario"), scenario_dict())
 
 
 @pytest.fixture(scope="module")
