@@ -17,6 +17,35 @@ def file_hashes(root: Path) -> dict[str, str]:
     }
 
 
+def views_scenario(
+    name: str,
+    seed: int,
+    frame_count: int,
+    size_px: tuple[int, int],
+    distance_step_km: float,
+    turn_deg: tuple[float, int, int, float],
+    target_seed: int,
+) -> dict:
+    """A small scenario of hand-placed views of the two-wing satellite at about 30 m
+    (one bounce). Frame i: distance 0.03 km + i * distance_step_km; turn_deg = (azimuth
+    step, elevation step, elevation span, roll step): azimuth step * i, elevation
+    (i * elevation step) % span - span / 2, roll step * i."""
+    azimuth, elevation, span, roll = turn_deg
+    frames = [
+        {"distance_km": 0.03 + distance_step_km * i, "azimuth_deg": azimuth * i,
+         "elevation_deg": (i * elevation) % span - span // 2, "roll_deg": roll * i}
+        for i in range(frame_count)
+    ]  # fmt: skip
+    return {
+        "name": name,
+        "seed": seed,
+        "camera": {"preset": "wide_field", "width_px": size_px[0], "height_px": size_px[1]},
+        "target": {"procedural": {"satellite_class": "two_wings", "seed": target_seed}},
+        "frames": frames,
+        "render": {"bounces": 1},
+    }
+
+
 def write_scenario_yaml(folder: Path, scenario: dict) -> Path:
     """``scenario`` written as ``folder/scenario.yaml``; returns its path."""
     path = folder / "scenario.yaml"

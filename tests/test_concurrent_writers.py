@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from cli_runner import run_satsight
-from dataset_files import write_scenario_yaml
+from dataset_files import views_scenario, write_scenario_yaml
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
 from satsight.dataset.lock import LOCK_NAME, WriterLock
@@ -31,19 +31,9 @@ REPEATS = 4
 
 
 def scenario_dict() -> dict:
-    frames = [
-        {"distance_km": 0.03 + 0.002 * i, "azimuth_deg": 31.0 * i,
-         "elevation_deg": (i * 13) % 60 - 30, "roll_deg": 5.0 * i}
-        for i in range(FRAME_COUNT)
-    ]  # fmt: skip
-    return {
-        "name": "concurrent-writers-test",
-        "seed": 5,
-        "camera": {"preset": "wide_field", "width_px": 128, "height_px": 96},
-        "target": {"procedural": {"satellite_class": "two_wings", "seed": 1}},
-        "frames": frames,
-        "render": {"bounces": 1},
-    }
+    return views_scenario(
+        "concurrent-writers-test", 5, FRAME_COUNT, (128, 96), 0.002, (31.0, 13, 60, 5.0), 1
+    )
 
 
 @pytest.fixture(scope="module")

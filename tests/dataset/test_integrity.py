@@ -17,7 +17,7 @@ import satsight.dataset.image_files as image_files
 import satsight.dataset.journal as journal
 import satsight.dataset.manifest as manifest
 import satsight.dataset.merge as merge
-from dataset_files import file_hashes, write_scenario_yaml
+from dataset_files import file_hashes, views_scenario, write_scenario_yaml
 from satsight.cli import main
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
@@ -29,19 +29,9 @@ FRAME_COUNT = 6
 
 
 def scenario_dict() -> dict:
-    frames = [
-        {"distance_km": 0.03 + 0.003 * i, "azimuth_deg": 37.0 * i,
-         "elevation_deg": (i * 17) % 70 - 35, "roll_deg": 11.0 * i}
-        for i in range(FRAME_COUNT)
-    ]  # fmt: skip
-    return {
-        "name": "integrity-test",
-        "seed": 3,
-        "camera": {"preset": "wide_field", "width_px": 96, "height_px": 64},
-        "target": {"procedural": {"satellite_class": "two_wings", "seed": 2}},
-        "frames": frames,
-        "render": {"bounces": 1},
-    }
+    return views_scenario(
+        "integrity-test", 3, FRAME_COUNT, (96, 64), 0.003, (37.0, 17, 70, 11.0), 2
+    )
 
 
 @pytest.fixture(scope="module")

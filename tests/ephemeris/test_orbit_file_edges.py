@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from cli_runner import run_satsight
+from iss_elements import ISS_1, ISS_2, ISS_OMM_FIELDS
 from satsight.ephemeris.oem import GAP_FACTOR, format_oem, parse_oem
 from satsight.ephemeris.orbits import MU_EARTH_M3_S2
 from satsight.ephemeris.time import timescale
@@ -33,23 +34,7 @@ FIVE_CM = 0.05
 EXAMPLES = Path(str(resources.files("satsight") / "examples"))
 ISS_OEM = "iss_2019-12-09.oem"
 
-ISS_1 = "1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991"
-ISS_2 = "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482"
-ISS_OMM = {
-    "OBJECT_NAME": "ISS (ZARYA)",
-    "OBJECT_ID": "1998-067A",
-    "EPOCH": "2019-12-09T16:38:29.363423",
-    "MEAN_MOTION": "15.50103472",
-    "ECCENTRICITY": "0.0007417",
-    "INCLINATION": "51.6439",
-    "RA_OF_ASC_NODE": "211.2001",
-    "ARG_OF_PERICENTER": "17.6667",
-    "MEAN_ANOMALY": "85.6398",
-    "NORAD_CAT_ID": "25544",
-    "BSTAR": "0.38792E-4",
-    "MEAN_MOTION_DOT": "1.764E-05",
-    "MEAN_MOTION_DDOT": "0",
-}
+ISS_OMM = ISS_OMM_FIELDS
 
 
 # --- helpers ---------------------------------------------------------------------------------

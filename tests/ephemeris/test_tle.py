@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from iss_elements import ISS_1, ISS_2, ISS_OMM_FIELDS
 from satsight.ephemeris.time import epoch_times
 from satsight.ephemeris.tle import (
     MAX_AGE_DAYS,
@@ -33,30 +34,8 @@ from satsight.errors import SatsightError
 ONE_M = 1.0
 ONE_MM_S = 1e-3
 
-ISS_1 = "1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991"
-ISS_2 = "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482"
 VANGUARD_1 = "1 00005U 58002B   00179.78495062  .00000023  00000-0  28098-4 0  4753"
 VANGUARD_2 = "2 00005  34.2682 348.7242 1859667 331.7664  19.3264 10.82419157413667"
-
-ISS_OMM_FIELDS = {
-    "OBJECT_NAME": "ISS (ZARYA)",
-    "OBJECT_ID": "1998-067A",
-    "EPOCH": "2019-12-09T16:38:29.363423",
-    "MEAN_MOTION": "15.50103472",
-    "ECCENTRICITY": "0.0007417",
-    "INCLINATION": "51.6439",
-    "RA_OF_ASC_NODE": "211.2001",
-    "ARG_OF_PERICENTER": "17.6667",
-    "MEAN_ANOMALY": "85.6398",
-    "EPHEMERIS_TYPE": "0",
-    "CLASSIFICATION_TYPE": "U",
-    "NORAD_CAT_ID": "25544",
-    "ELEMENT_SET_NO": "999",
-    "REV_AT_EPOCH": "20248",
-    "BSTAR": "0.38792E-4",
-    "MEAN_MOTION_DOT": "1.764E-05",
-    "MEAN_MOTION_DDOT": "0",
-}
 
 
 def _reference_gcrs(line1: str, line2: str, times) -> tuple[np.ndarray, np.ndarray]:

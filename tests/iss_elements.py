@@ -1,0 +1,25 @@
+"""The ISS's element set of 2019-12-09 as a TLE and as OMM fields, shared by the TLE/OMM
+tests (CelesTrak's published set for that epoch)."""
+
+ISS_1 = "1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991"
+ISS_2 = "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482"
+
+ISS_OMM_FIELDS = {
+    "OBJECT_NAME": "ISS (ZARYA)",
+    "OBJECT_ID": "1998-067A",
+    "EPOCH": "2019-12-09T16:38:29.363423",
+    "MEAN_MOTION": "15.50103472",
+    "ECCENTRICITY": "0.0007417",
+    "INCLINATION": "51.6439",
+    "RA_OF_ASC_NODE": "211.2001",
+    "ARG_OF_PERICENTER": "17.6667",
+    "MEAN_ANOMALY": "85.6398",
+    "EPHEMERIS_TYPE": "0",
+    "CLASSIFICATION_TYPE": "U",
+    "NORAD_CAT_ID": "25544",
+    "ELEMENT_SET_NO": "999",
+    "REV_AT_EPOCH": "20248",
+    "BSTAR": "0.38792E-4",
+    "MEAN_MOTION_DOT": "1.764E-05",
+    "MEAN_MOTION_DDOT": "0",
+}
