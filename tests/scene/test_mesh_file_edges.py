@@ -23,7 +23,7 @@ from satsight.errors import SatsightError
 from satsight.scene.loading import load_mesh
 from satsight.scene.textures import MAX_TEXTURE_FILE_PIXELS, open_texture_file
 
-LOGGER = "satsight.scene.loading"
+LOGGER = "satsight.scene"  # the mesh file readers log under satsight.scene.*
 
 
 def png_header(width: int, height: int) -> bytes:
