@@ -24,7 +24,8 @@ import time
 from pathlib import Path
 
 from satsight.brdf.reference_fit import fit_phong_to_ggx
-from satsight.scene.band_reflectance import DEFAULT_BAND_NM, material_from_entry
+from satsight.constants import DEFAULT_BAND_NM
+from satsight.scene.band_reflectance import material_from_entry
 from satsight.scene.material_library import list_materials
 
 

@@ -15,6 +15,13 @@ import numpy as np
 from satsight import __version__
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.scenario import CameraConfig, Scenario, TargetConfig
+from satsight.constants import (
+    DEFAULT_BAND_NM,
+    EARTH_ALBEDO,
+    EARTH_EQUATORIAL_RADIUS_M,
+    MOON_ALBEDO,
+    MOON_MEAN_RADIUS_M,
+)
 from satsight.dataset.frame_files import FrameArrays
 from satsight.dataset.journal import file_checksum
 from satsight.dataset.labels import (
@@ -24,15 +31,15 @@ from satsight.dataset.labels import (
     frame_labels,
 )
 from satsight.dataset.preview import PreviewStretch
-from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M
-from satsight.ephemeris.sun_moon import AU_M
+from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
+from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.frame_memory import check_frame_memory
 from satsight.frames.rigid import RigidTransform
-from satsight.lighting.bodies import MOON_MEAN_RADIUS_M, environment_light_field
+from satsight.lighting.bodies import environment_light_field
 from satsight.lighting.light_field import LightField
 from satsight.lighting.scene_bodies import earth_body, moon_body
-from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM
+from satsight.lighting.solar_spectrum import irradiance_at_distance_w_m2
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage, SunLight
@@ -92,6 +99,16 @@ def build_target(config: TargetConfig, band_nm: tuple[float, float] | None = Non
     )
 
 
+def sun_irradiance_w_m2(scenario: Scenario, track: PoseTrack, index: int) -> float:
+    """The Sun's in-band irradiance (W m^-2) at the target in plan frame ``index``, before
+    the Earth's shadow: the scenario's ``sun`` value for hand-placed views; on an orbit, its
+    value at 1 AU scaled to the frame's Sun distance (inverse square)."""
+    if scenario.sampler is None:
+        return scenario.sun.in_band_irradiance_w_m2
+    at_1_au = scenario.sun.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
+    return irradiance_at_distance_w_m2(at_1_au, track.sun_distance_m[index])
+
+
 def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[LightField, SunLight]:
     """The light at the target in frame ``index`` of the plan, in the body frame.
 
@@ -103,12 +120,7 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
     epoch, or the target's body frame when the scenario has no epoch).
     """
     R_body_from_cam = track.cam_from_body(index).R_a_from_b.T
-    sun_config = scenario.sun
-    if scenario.sampler is None:
-        irradiance = sun_config.in_band_irradiance_w_m2
-    else:
-        at_1_au = sun_config.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
-        irradiance = at_1_au * (AU_M / track.sun_distance_m[index]) ** 2
+    irradiance = sun_irradiance_w_m2(scenario, track, index)
     sun_body = R_body_from_cam @ track.sun_from_target_cam[index]
     at_target = irradiance * float(track.sunlit_fraction[index])
 
@@ -145,9 +157,9 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
         sun_body,
         irradiance,
         earth_center_from_target_m=earth_center,
-        earth_albedo=0.30 if earth is None else earth.albedo,
+        earth_albedo=EARTH_ALBEDO if earth is None else earth.albedo,
         moon_center_from_target_m=moon_center,
-        moon_albedo=0.12 if moon is None else moon.albedo,
+        moon_albedo=MOON_ALBEDO if moon is None else moon.albedo,
         l_max=scenario.render.sh_order,
         sun_irradiance_at_target_w_m2=at_target,
         earth=bodies[0] if bodies else None,
@@ -164,12 +176,8 @@ def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:
     attitude (views given in the body frame) the target's body frame stands in for it."""
     if not (track.has_sky and track.epoch_utc[index]):
         return track.cam_from_body(index).R_a_from_b
-    from skyfield.framelib import itrs
-
-    from satsight.ephemeris.time import parse_epoch_utc
-
-    R_itrs_from_gcrs = itrs.rotation_at(parse_epoch_utc(track.epoch_utc[index]))
-    return track.R_cam_from_gcrs(index) @ R_itrs_from_gcrs.T
+    R_itrs_from_gcrs_now = R_itrs_from_gcrs(parse_epoch_utc(track.epoch_utc[index]))[0]
+    return track.R_cam_from_gcrs(index) @ R_itrs_from_gcrs_now.T
 
 
 def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:
@@ -207,7 +215,7 @@ def build_sensor(scenario: Scenario, camera: CameraConfig | None = None) -> Sens
         detector=camera.build_detector(),
         band_nm=scenario.sun.band_nm,
         spectrum=scenario.sun.spectrum,
-        exposure=camera.exposure,
+        exposure=camera.exposure.build(),
         camera_seed=camera.seed,
         supersampling=scenario.render.supersampling,
         samples_per_pixel=scenario.render.samples_per_pixel,
@@ -352,7 +360,7 @@ def sensor_summary(sensor: SensorChain) -> dict:
         "optics": dataclasses.asdict(sensor.optics),
         "f_number": sensor.optics.f_number,
         "detector": dataclasses.asdict(sensor.detector),
-        "exposure": sensor.exposure.model_dump(),
+        "exposure": dataclasses.asdict(sensor.exposure),
         "frame_kernel": {
             "description": "kernel applied to rendered frames so that their MTF is the "
             "system MTF up to Nyquist, designed for the render's sub-pixel sampling; the "
@@ -502,12 +510,8 @@ class FrameEngine:
         """The Sun's in-band irradiance (W m^-2) at plan frame ``plan_index`` before the
         Earth's shadow, as ``frame_light`` lights it (the photometric labels' reference),
         and the Sun's distance (m)."""
-        scenario = self.scenario
         sun_distance_m = float(self.track.sun_distance_m[plan_index])
-        if scenario.sampler is None:
-            return scenario.sun.in_band_irradiance_w_m2, sun_distance_m
-        at_1_au = scenario.sun.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
-        return at_1_au * (AU_M / sun_distance_m) ** 2, sun_distance_m
+        return float(sun_irradiance_w_m2(self.scenario, self.track, plan_index)), sun_distance_m
 
     def header(self) -> dict:
         """The dataset's description: everything labels.json holds besides its frames."""

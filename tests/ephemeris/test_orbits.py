@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.orbits import (
-    EARTH_EQUATORIAL_RADIUS_M,
     J2,
     MU_EARTH_M3_S2,
     OrbitalElements,

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris import earth_orientation as eo
 from satsight.ephemeris.orbits import (
-    EARTH_EQUATORIAL_RADIUS_M,
     J2,
     J3,
     J4,

@@ -15,13 +15,13 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
+from satsight.constants import AU_M, EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.occultation import (
     DEFAULT_ATMOSPHERE_MARGIN_M,
     earth_occults,
     los_clearance_m,
 )
 from satsight.ephemeris.orbits import (
-    EARTH_EQUATORIAL_RADIUS_M,
     MU_EARTH_M3_S2,
     OrbitalElements,
     orbital_period_s,
@@ -35,7 +35,7 @@ from satsight.ephemeris.shadow import (
     in_cylindrical_shadow,
     sunlit_fraction,
 )
-from satsight.ephemeris.sun_moon import AU_M, sun_position_gcrs_m
+from satsight.ephemeris.sun_moon import sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times
 from satsight.ephemeris.visibility import (
     FrameVisibility,

@@ -15,19 +15,15 @@ import pytest
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
+from satsight.constants import AU_M, WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
 from satsight.ephemeris.occultation import (
     DEFAULT_ATMOSPHERE_MARGIN_M,
     earth_occults,
     inside_earth,
     los_clearance_m,
 )
-from satsight.ephemeris.sun_moon import AU_M
 from satsight.ephemeris.visibility import assess_visibility
-from satsight.ephemeris.wgs84 import (
-    WGS84_SEMI_MAJOR_AXIS_M,
-    WGS84_SEMI_MINOR_AXIS_M,
-    geodetic_height_m,
-)
+from satsight.ephemeris.wgs84 import geodetic_height_m
 from satsight.errors import SatsightError
 
 A = WGS84_SEMI_MAJOR_AXIS_M

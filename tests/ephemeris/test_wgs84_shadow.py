@@ -19,6 +19,7 @@ from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 from skyfield.framelib import itrs
 
+from satsight.constants import AU_M, WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
 from satsight.ephemeris.orbits import (
     OrbitalElements,
     orbital_period_s,
@@ -26,9 +27,8 @@ from satsight.ephemeris.orbits import (
     state_from_elements,
 )
 from satsight.ephemeris.shadow import SUN_RADIUS_M, in_cylindrical_shadow, sunlit_fraction
-from satsight.ephemeris.sun_moon import AU_M, sun_position_gcrs_m
+from satsight.ephemeris.sun_moon import sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times
-from satsight.ephemeris.wgs84 import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
 from satsight.errors import SatsightError
 
 A = WGS84_SEMI_MAJOR_AXIS_M

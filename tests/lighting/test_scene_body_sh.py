@@ -16,6 +16,7 @@ import math
 import numpy as np
 import pytest
 
+from satsight.constants import WGS84_SEMI_MAJOR_AXIS_M
 from satsight.lighting import sh
 from satsight.lighting.bodies import (
     DEFAULT_SH_NODES,
@@ -23,7 +24,7 @@ from satsight.lighting.bodies import (
     environment_light_field,
     scene_body_sh,
 )
-from satsight.lighting.scene_bodies import WGS84_SEMI_MAJOR_AXIS_M, AlbedoMap, earth_body
+from satsight.lighting.scene_bodies import AlbedoMap, earth_body
 
 E_SUN_W_M2 = 1000.0
 L_MAX = 4

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from satsight.config.scenario import load_scenario, parse_scenario
+from satsight.constants import AU_M
 from satsight.ephemeris.orbits import orbital_period_s, propagate, state_from_elements
-from satsight.ephemeris.sun_moon import AU_M, sun_position_gcrs_m
+from satsight.ephemeris.sun_moon import sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times
 from satsight.errors import SatsightError
 from satsight.frames.orbital import lvlh_from_inertial

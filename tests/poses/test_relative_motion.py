@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.orbits import (
-    EARTH_EQUATORIAL_RADIUS_M,
     J2,
     MU_EARTH_M3_S2,
     OrbitalElements,

@@ -19,14 +19,10 @@ import pytest
 
 from builders import plate_parts
 from satsight.camera.pinhole import PinholeCamera
+from satsight.constants import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
 from satsight.frames.rigid import look_at_cam_from_body
 from satsight.lighting.light_field import LightField
-from satsight.lighting.scene_bodies import (
-    BACKGROUND_EARTH,
-    WGS84_SEMI_MAJOR_AXIS_M,
-    WGS84_SEMI_MINOR_AXIS_M,
-    earth_body,
-)
+from satsight.lighting.scene_bodies import BACKGROUND_EARTH, earth_body
 from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings
 from satsight.scene.materials import Material

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from satsight.camera.pinhole import PinholeCamera
-from satsight.config.sensor import ExposureConfig
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2, load_e490
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.sensor.chain import SensorChain, exposure_regions
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
+from satsight.sensor.exposure import ExposureRule
 from satsight.sensor.optics import Optics
 
 BAND_NM = (450.0, 900.0)
@@ -23,7 +23,7 @@ C_M_S = 299_792_458.0
 
 
 def _chain(
-    exposure: ExposureConfig | None = None, size_px: tuple[int, int] = (96, 80), **detector
+    exposure: ExposureRule | None = None, size_px: tuple[int, int] = (96, 80), **detector
 ) -> SensorChain:
     camera = PinholeCamera.high_resolution().with_size(*size_px)
     return SensorChain(
@@ -31,7 +31,7 @@ def _chain(
         optics=Optics.for_preset("high_resolution"),
         detector=DetectorParameters(pixel_pitch_m=camera.pixel_pitch_m, **detector),
         band_nm=BAND_NM,
-        exposure=exposure or ExposureConfig(),
+        exposure=exposure or ExposureRule(),
         camera_seed=3,
     )
 
@@ -75,7 +75,7 @@ def test_photons_as_irradiance_round_trips_through_the_detector() -> None:
 
 
 def test_auto_exposure_fills_the_chosen_fraction_at_the_percentile() -> None:
-    chain = _chain(ExposureConfig(fill_fraction=0.6, percentile=50.0))
+    chain = _chain(ExposureRule(fill_fraction=0.6, percentile=50.0))
     irradiance = np.zeros((80, 96), np.float32)
     irradiance[10:30, 10:60] = 0.25
     irradiance[30:50, 10:60] = 0.5  # the median of the lit target is between the two
@@ -92,13 +92,13 @@ def test_exposure_rule_falls_back_and_clips() -> None:
     irradiance = np.full((80, 96), 1e-9, np.float32)
     mask = np.zeros((80, 96), bool)
     # No target on the frame: the configured time.
-    assert _chain(ExposureConfig(time_s=0.02)).exposure_time_s(irradiance, mask) == 0.02
+    assert _chain(ExposureRule(time_s=0.02)).exposure_time_s(irradiance, mask) == 0.02
     # A very faint target: the longest time allowed.
     mask[:5, :5] = True
-    clipped = _chain(ExposureConfig(max_time_s=2.0)).exposure_time_s(irradiance, mask)
+    clipped = _chain(ExposureRule(max_time_s=2.0)).exposure_time_s(irradiance, mask)
     assert clipped == 2.0
     # Fixed mode ignores the scene.
-    fixed = _chain(ExposureConfig(mode="fixed", time_s=0.5)).exposure_time_s(irradiance, mask)
+    fixed = _chain(ExposureRule(mode="fixed", time_s=0.5)).exposure_time_s(irradiance, mask)
     assert fixed == 0.5
 
 
@@ -107,7 +107,7 @@ def test_uniform_patch_reads_the_closed_form_dn() -> None:
     E = pi L tau / (4 N^2); the sky beyond the blur's reach reads the bias. "Inside" and
     "beyond" are farther than the kernel's radius (20 px) from the patch's edge: nearer, the
     Airy wings carry light out of the patch (~0.5 % at 8 px inside it)."""
-    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002), size_px=(180, 140))
+    chain = _chain(ExposureRule(mode="fixed", time_s=0.002), size_px=(180, 140))
     radiance = np.zeros((140, 180, 3), np.float32)
     radiance[40:120, 30:150] = 30.0
     image = _image(radiance)
@@ -190,7 +190,7 @@ def test_a_coloured_patch_counts_the_photons_of_its_own_third(channel) -> None:
     """Light in one channel only: its photons are its in-band power over h c / lambda_c,
     lambda_c the photon-weighted wavelength of that third of the band (not of the whole
     band, which would miscount red light by +27 % and blue light by -19 %)."""
-    chain = _chain(ExposureConfig(mode="fixed", time_s=0.002), size_px=(140, 120))
+    chain = _chain(ExposureRule(mode="fixed", time_s=0.002), size_px=(140, 120))
     radiance = np.zeros((120, 140, 3), np.float32)
     radiance[20:100, 20:120, channel] = 40.0
     irradiance = chain.focal_plane_irradiance_w_m2(_image(radiance))
@@ -308,7 +308,7 @@ def test_the_kernel_follows_the_render_sampling() -> None:
 def test_exposure_labels_tell_the_target_and_a_bright_earth_apart() -> None:
     """The auto exposure serves the target; the Earth behind it, 20 x brighter, is reported
     at 20 x the target's fill and all its pixels saturated, the target's none."""
-    chain = _chain(ExposureConfig(fill_fraction=0.7, percentile=99.0), blooming=False)
+    chain = _chain(ExposureRule(fill_fraction=0.7, percentile=99.0), blooming=False)
     target = np.zeros((80, 96), bool)
     target[20:50, 30:70] = True
     background = np.zeros((80, 96), np.uint8)

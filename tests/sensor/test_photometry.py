@@ -19,7 +19,7 @@ import pytest
 
 from builders import plate_parts
 from satsight.camera.pinhole import PinholeCamera
-from satsight.ephemeris.sun_moon import AU_M
+from satsight.constants import AU_M
 from satsight.errors import SatsightError
 from satsight.frames.rigid import look_at_cam_from_body
 from satsight.lighting.light_field import LightField

@@ -15,13 +15,9 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.oem import OemEphemeris, read_oem
-from satsight.ephemeris.orbits import (
-    EARTH_EQUATORIAL_RADIUS_M,
-    MU_EARTH_M3_S2,
-    OrbitalElements,
-    orbital_period_s,
-)
+from satsight.ephemeris.orbits import MU_EARTH_M3_S2, OrbitalElements, orbital_period_s
 from satsight.ephemeris.tle import (
     Sgp4Orbit,
     parse_tle,

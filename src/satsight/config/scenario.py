@@ -46,10 +46,11 @@ from satsight.config.target import (  # noqa: F401 (re-exported: the scenario's 
     TargetConfig,
 )
 from satsight.config.yaml_safety import load_yaml_file
+from satsight.constants import DEFAULT_BAND_NM
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.frames.rigid import RigidTransform
-from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, SPECTRA, band_irradiance_w_m2
+from satsight.lighting.solar_spectrum import SPECTRA, band_irradiance_w_m2
 from satsight.poses.views import View, direction_from_angles
 from satsight.render.buffers import SunLight
 from satsight.render.settings import (

@@ -12,6 +12,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from satsight.sensor.detector import DetectorParameters
+from satsight.sensor.exposure import ExposureRule
 from satsight.sensor.optics import DEFAULT_APERTURE_DIAMETER_M, DEFAULT_TRANSMISSION, Optics
 from satsight.sensor.star_catalog import MAX_V_MAG_LIMIT
 
@@ -71,8 +72,11 @@ class DetectorConfig(_Strict):
         return DetectorParameters(pixel_pitch_m=pixel_pitch_m, **self.model_dump())
 
 
+_EXPOSURE = ExposureRule()
+
+
 class ExposureConfig(_Strict):
-    """How long each frame integrates.
+    """How long each frame integrates (``satsight.sensor.exposure``, which it builds).
 
     ``mode: auto`` picks, per frame, the time that puts the ``percentile`` of the target's
     focal-plane irradiance at ``fill_fraction`` of full well (a few brighter glints may
@@ -80,12 +84,15 @@ class ExposureConfig(_Strict):
     ``time_s``. ``mode: fixed`` uses ``time_s`` for every frame.
     """
 
-    mode: Literal["auto", "fixed"] = "auto"
-    time_s: float = Field(default=0.01, gt=0, le=3600)
-    fill_fraction: float = Field(default=0.7, gt=0, le=1)
-    percentile: float = Field(default=99.0, gt=0, le=100)
-    min_time_s: float = Field(default=1e-5, gt=0)
-    max_time_s: float = Field(default=10.0, gt=0, le=3600)
+    mode: Literal["auto", "fixed"] = _EXPOSURE.mode
+    time_s: float = Field(default=_EXPOSURE.time_s, gt=0, le=3600)
+    fill_fraction: float = Field(default=_EXPOSURE.fill_fraction, gt=0, le=1)
+    percentile: float = Field(default=_EXPOSURE.percentile, gt=0, le=100)
+    min_time_s: float = Field(default=_EXPOSURE.min_time_s, gt=0)
+    max_time_s: float = Field(default=_EXPOSURE.max_time_s, gt=0, le=3600)
+
+    def build(self) -> ExposureRule:
+        return ExposureRule(**self.model_dump())
 
     @model_validator(mode="after")
     def _ordered(self) -> ExposureConfig:

@@ -6,7 +6,7 @@ This module gathers the public names of the two stages it is built from:
   :func:`state_from_elements` / :func:`elements_from_state`, :func:`orbital_period_s`,
   ``MU_EARTH_M3_S2``;
 * :mod:`satsight.ephemeris.propagation`: :func:`propagate` (RK4 or DOP853),
-  :func:`gravity_acceleration_m_s2`, the constants ``EARTH_EQUATORIAL_RADIUS_M``, ``J2``,
+  :func:`gravity_acceleration_m_s2`, the constants ``J2``,
   ``J3``, ``J4``.
 
 Frame: every position and velocity is in GCRS (Earth-centred, ICRS axes). The zonal
@@ -27,7 +27,6 @@ from satsight.ephemeris.propagation import (
     DOP853_ATOL_POSITION_M,
     DOP853_ATOL_VELOCITY_M_S,
     DOP853_RTOL,
-    EARTH_EQUATORIAL_RADIUS_M,
     J2,
     J2_AXES,
     J3,
@@ -40,7 +39,6 @@ __all__ = [
     "DOP853_ATOL_POSITION_M",
     "DOP853_ATOL_VELOCITY_M_S",
     "DOP853_RTOL",
-    "EARTH_EQUATORIAL_RADIUS_M",
     "J2",
     "J2_AXES",
     "J3",

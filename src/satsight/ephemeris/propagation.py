@@ -47,13 +47,10 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from skyfield.timelib import Time
 
+from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.earth_orientation import pole_track
 from satsight.ephemeris.elements import MU_EARTH_M3_S2, _check_mu, _check_vector
 from satsight.errors import SatsightError
-
-# Equatorial radius of the Earth, m: WGS-84 defining parameter (NIMA TR8350.2, 3rd ed.,
-# Table 3.1); also Vallado, 4th ed., Appendix D. EGM96 uses the same reference radius.
-EARTH_EQUATORIAL_RADIUS_M = 6378137.0
 
 # Unnormalised zonal harmonics of the Earth's gravity field, EGM96 (Lemoine et al., "The
 # Development of the Joint NASA GSFC and NIMA Geopotential Model EGM96", NASA/TP-1998-

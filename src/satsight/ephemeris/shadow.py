@@ -35,6 +35,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from satsight.constants import (
+    EARTH_EQUATORIAL_RADIUS_M,
+    WGS84_SEMI_MAJOR_AXIS_M,
+    WGS84_SEMI_MINOR_AXIS_M,
+)
 from satsight.ephemeris.geometry import (
     angle_between,
     finish,
@@ -44,8 +49,7 @@ from satsight.ephemeris.geometry import (
     rotate,
     stack,
 )
-from satsight.ephemeris.orbits import EARTH_EQUATORIAL_RADIUS_M, MU_EARTH_M3_S2
-from satsight.ephemeris.wgs84 import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
+from satsight.ephemeris.orbits import MU_EARTH_M3_S2
 from satsight.errors import SatsightError
 
 # Nominal solar radius, m: IAU 2015 Resolution B3 (R_sun^N = 6.957e8 m).

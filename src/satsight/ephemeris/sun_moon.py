@@ -53,11 +53,9 @@ from skyfield.errors import EphemerisRangeError
 from skyfield.jpllib import SpiceKernel
 from skyfield.timelib import Time
 
+from satsight.constants import AU_M
 from satsight.ephemeris.time import skyfield_data_dir, skyfield_loader, timescale
 from satsight.errors import SatsightError
-
-# The astronomical unit, m (IAU 2012 Resolution B2, exact by definition).
-AU_M = 149_597_870_700.0
 
 EPHEMERIS_FILE = "de421.bsp"
 

@@ -31,24 +31,11 @@ import math
 
 import numpy as np
 
+from satsight.constants import EARTH_ALBEDO, EARTH_MEAN_RADIUS_M, MOON_ALBEDO, MOON_MEAN_RADIUS_M
 from satsight.errors import SatsightError
 from satsight.lighting import sh
 from satsight.lighting.light_field import LightField
 from satsight.lighting.scene_bodies import SceneBody
-
-# Mean radius R1 of the Earth, m: IUGG / Geodetic Reference System 1980 (Moritz, "Geodetic
-# Reference System 1980", Bulletin Geodesique 54, 395-405, 1980).
-EARTH_MEAN_RADIUS_M = 6_371_008.8
-# Mean radius of the Moon, m: IAU Working Group on Cartographic Coordinates and Rotational
-# Elements (Archinal et al., Celest. Mech. Dyn. Astron. 109, 101-135, 2011).
-MOON_MEAN_RADIUS_M = 1_737_400.0
-# Earth's Bond albedo is about 0.30 (Stephens et al., "The albedo of Earth", Rev. Geophys.
-# 53, 141-163, 2015: 0.29 from CERES; NASA GSFC Earth Fact Sheet: 0.306). For a Lambertian
-# sphere the Bond (spherical) albedo equals the surface albedo rho.
-EARTH_ALBEDO = 0.30
-# The Moon's albedo is about 0.12 (NASA GSFC Moon Fact Sheet: geometric albedo 0.12, Bond
-# albedo 0.11).
-MOON_ALBEDO = 0.12
 
 # Default polar nodes of the cone quadrature (twice as many azimuth nodes). Where the
 # terminator crosses the disc its kink limits the accuracy to order n_nodes^-2: with 64

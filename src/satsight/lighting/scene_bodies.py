@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from satsight.ephemeris.wgs84 import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
+from satsight.constants import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
 from satsight.errors import SatsightError
 
 #: Background label values: what a pixel-centre ray that misses the target meets.

@@ -39,6 +39,7 @@ from typing import Literal
 import numpy as np
 import scipy.constants as const
 
+from satsight.constants import AU_M, DEFAULT_BAND_NM
 from satsight.errors import SatsightError
 
 Spectrum = Literal["astm_e490", "blackbody_5778k"]
@@ -52,8 +53,6 @@ E490_SOLAR_CONSTANT_W_M2 = 1366.1
 PAPER_SUN_TEMPERATURE_K = 5778.0
 IAU_2015_NOMINAL_SUN_TEFF_K = 5772.0
 
-# The paper's imaging band, nm.
-DEFAULT_BAND_NM = (450.0, 900.0)
 
 E490_FILE = "astm_e490_am0.csv"
 # SHA-256 of the data file, with line endings normalised to "\n".
@@ -246,6 +245,12 @@ def band_irradiance_w_m2(
     d = _check_distance_au(distance_au)
     e_1au = _band_irradiance_1au_w_m2(lo, hi, spectrum, temperature_k, total_w_m2)
     return e_1au / d**2
+
+
+def irradiance_at_distance_w_m2(irradiance_at_1_au_w_m2: float, sun_distance_m: float) -> float:
+    """The Sun's irradiance (W m^-2, any band) at ``sun_distance_m`` from it, from its value
+    at 1 AU by the inverse-square law: ``E(d) = E_1AU (AU / d)^2``."""
+    return irradiance_at_1_au_w_m2 * (AU_M / sun_distance_m) ** 2
 
 
 def spectral_weights(

@@ -37,10 +37,10 @@ import numpy as np
 from satsight.config.orbital import ABSOLUTE_TRAJECTORY_MODES
 from satsight.config.orbital import natural_span_s as config_natural_span_s
 from satsight.config.scenario import Scenario
+from satsight.constants import AU_M, EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
 from satsight.ephemeris.occultation import inside_earth
 from satsight.ephemeris.orbits import (
-    EARTH_EQUATORIAL_RADIUS_M,
     J2,
     MU_EARTH_M3_S2,
     OrbitalElements,
@@ -49,7 +49,7 @@ from satsight.ephemeris.orbits import (
     propagate,
     state_from_elements,
 )
-from satsight.ephemeris.sun_moon import AU_M, moon_position_gcrs_m, sun_position_gcrs_m
+from satsight.ephemeris.sun_moon import moon_position_gcrs_m, sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times, format_epoch_utc
 from satsight.ephemeris.visibility import assess_visibility
 from satsight.ephemeris.wgs84 import geodetic_height_m

@@ -42,8 +42,9 @@ from satsight.camera.quantum_efficiency import (
     QuantumEfficiency,
     resolve_quantum_efficiency,
 )
+from satsight.constants import DEFAULT_BAND_NM
 from satsight.errors import SatsightError
-from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, check_band_nm, load_e490
+from satsight.lighting.solar_spectrum import check_band_nm, load_e490
 from satsight.scene.material_library import (
     LIBRARY_PREFIX,
     LibraryEntry,

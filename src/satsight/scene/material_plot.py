@@ -12,7 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from satsight.camera.quantum_efficiency import DEFAULT_QE, QuantumEfficiency
-from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM, check_band_nm
+from satsight.constants import DEFAULT_BAND_NM
+from satsight.lighting.solar_spectrum import check_band_nm
 from satsight.scene.band_reflectance import material_rgb_reflectance
 from satsight.scene.material_library import CATEGORIES, entry_spectrum, load_library
 

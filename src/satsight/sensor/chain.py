@@ -16,7 +16,7 @@ photon-weighted wavelength. Then, in the detector's physical order:
 2. stars: their photons, each through the same optics at its exact sub-pixel position
    (``satsight.sensor.star_field``), added to the focal plane;
 3. exposure: a fixed time, or the time that fills a chosen fraction of full well with the
-   target's bright end (``ExposureConfig``);
+   target's bright end (``satsight.sensor.exposure.ExposureRule``);
 4. detector: photons, QE, fixed pattern, dark current, shot noise, full well and blooming,
    read noise, gain, bias and ADC (``satsight.sensor.detector``).
 
@@ -37,7 +37,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
-from satsight.config.sensor import ExposureConfig
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import (
     Spectrum,
@@ -53,6 +52,7 @@ from satsight.sensor.detector import (
     mean_photon_energy_j,
     simulate_detector,
 )
+from satsight.sensor.exposure import ExposureRule
 from satsight.sensor.mtf import band_wavelengths_m, check_render_sampling
 from satsight.sensor.optics import Optics, focal_plane_irradiance_w_m2
 from satsight.sensor.psf import frame_kernel
@@ -145,7 +145,7 @@ class SensorChain:
     detector: DetectorParameters
     band_nm: tuple[float, float]
     spectrum: Spectrum = "astm_e490"
-    exposure: ExposureConfig = field(default_factory=ExposureConfig)
+    exposure: ExposureRule = field(default_factory=ExposureRule)
     camera_seed: int = 0
     supersampling: int = 1
     samples_per_pixel: int = 1

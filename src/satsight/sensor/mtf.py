@@ -32,6 +32,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.special import j1
 
+from satsight.constants import DEFAULT_BAND_NM
 from satsight.errors import SatsightError
 from satsight.sensor.optics import (
     Optics,
@@ -164,11 +165,9 @@ def band_wavelengths_m(
 ) -> np.ndarray:
     """Centre wavelengths (m), shape (n,), of n equal sub-bands of band_nm = (lo, hi) in nm.
 
-    Defaults to the project's band (``satsight.lighting.solar_spectrum.DEFAULT_BAND_NM``).
+    Defaults to the project's band (``satsight.constants.DEFAULT_BAND_NM``).
     """
     if band_nm is None:
-        from satsight.lighting.solar_spectrum import DEFAULT_BAND_NM
-
         band_nm = DEFAULT_BAND_NM
     lo, hi = (float(b) for b in band_nm)
     if not (0 < lo < hi and math.isfinite(hi)):

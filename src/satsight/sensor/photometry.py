@@ -61,7 +61,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
-from satsight.ephemeris.sun_moon import AU_M
+from satsight.constants import AU_M
 from satsight.errors import SatsightError
 from satsight.render.buffers import RadianceImage
 

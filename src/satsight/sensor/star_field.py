@@ -32,6 +32,7 @@ import numpy as np
 from skyfield.timelib import Time
 
 from satsight.camera.pinhole import PinholeCamera
+from satsight.constants import DEFAULT_BAND_NM
 from satsight.ephemeris.sun_moon import ephemeris
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
@@ -44,7 +45,6 @@ from satsight.sensor.star_catalog import (
     star_photon_flux_m2_s,
 )
 
-DEFAULT_BAND_NM: tuple[float, float] = (450.0, 900.0)
 DEFAULT_STAMP_RADIUS_PX = 8
 """Half-width of the square pixel stamp of each star (17 x 17 px)."""
 DEFAULT_MARGIN_PX = 16.0
