@@ -12,6 +12,7 @@ from satsight.errors import SatsightError
 from satsight.scene.mesh import PartSurface, TargetMesh, merge_parts
 from satsight.scene.normals import (
     DEFAULT_CREASE_ANGLE_DEG,
+    angle_weighted_vertex_normals,
     box_uv,
     crease_normals,
     face_normals,
@@ -128,3 +129,14 @@ def test_crease_angle_of_exactly_the_facet_angle_is_inclusive() -> None:
     tilt = np.degrees(np.arccos(np.clip((normals[side] * fn[side, None]).sum(-1), -1, 1)))
     assert tilt.max() == pytest.approx(15.0, abs=1e-6)
     assert math.isclose(DEFAULT_CREASE_ANGLE_DEG, 30.0)
+
+
+def test_angle_weighted_vertex_normals_of_a_box_point_along_its_diagonals() -> None:
+    """Each box corner meets three faces at 90 degrees in total each (however the face is
+    split into triangles), so its normal is the exact diagonal; an unused vertex gets 0."""
+    box = trimesh.creation.box(extents=[2.0, 2.0, 2.0])
+    vertices = np.vstack([np.asarray(box.vertices), [[5.0, 5.0, 5.0]]])
+    normals = angle_weighted_vertex_normals(vertices, np.asarray(box.faces))
+    diagonal = vertices[:-1] / np.linalg.norm(vertices[:-1], axis=1, keepdims=True)
+    np.testing.assert_allclose(normals[:-1], diagonal, atol=ATOL)
+    np.testing.assert_array_equal(normals[-1], 0.0)

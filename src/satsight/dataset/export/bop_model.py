@@ -21,35 +21,11 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from satsight.scene.mesh import TargetMesh
+from satsight.scene.normals import angle_weighted_vertex_normals
 
 MM_PER_M = 1000.0
 #: Vertices per block of the pairwise-distance search (memory ~ block^2 * 8 bytes).
 _BLOCK = 2048
-
-
-def angle_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit vertex normals: face normals summed with the face's angle at the vertex.
-
-    vertices: (N, 3). faces: (M, 3), counter-clockwise seen from outside. Vertices that
-    belong to no (non-degenerate) face get a zero normal.
-    """
-    corners = vertices[faces]  # (M, 3, 3)
-    face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    lengths = np.linalg.norm(face_normals, axis=1, keepdims=True)
-    face_normals = np.divide(
-        face_normals, lengths, out=np.zeros_like(face_normals), where=lengths > 0
-    )
-    normals = np.zeros_like(vertices)
-    for k in range(3):
-        a = corners[:, (k + 1) % 3] - corners[:, k]
-        b = corners[:, (k + 2) % 3] - corners[:, k]
-        cosine = np.einsum("ij,ij->i", a, b) / np.maximum(
-            np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300
-        )
-        angle = np.arccos(np.clip(cosine, -1.0, 1.0))
-        np.add.at(normals, faces[:, k], face_normals * angle[:, None])
-    lengths = np.linalg.norm(normals, axis=1, keepdims=True)
-    return np.divide(normals, lengths, out=np.zeros_like(normals), where=lengths > 0)
 
 
 def ply_text(vertices_mm: np.ndarray, normals: np.ndarray, faces: np.ndarray) -> str:
@@ -103,7 +79,7 @@ def models_info_entry(vertices_mm: np.ndarray) -> dict:
 def write_bop_model(mesh: TargetMesh, models_dir: Path, obj_id: int = 1) -> dict:
     """Write ``obj_{obj_id:06d}.ply`` of the target mesh (metres); its info entry (mm)."""
     vertices_mm = mesh.vertices_m * MM_PER_M
-    normals = angle_weighted_normals(mesh.vertices_m, mesh.faces)
+    normals = angle_weighted_vertex_normals(mesh.vertices_m, mesh.faces)
     models_dir.mkdir(parents=True, exist_ok=True)
     text = ply_text(vertices_mm, normals, mesh.faces)
     (models_dir / f"obj_{obj_id:06d}.ply").write_text(text, encoding="ascii")
