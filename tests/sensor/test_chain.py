@@ -14,7 +14,7 @@ from satsight.lighting.solar_spectrum import band_irradiance_w_m2, load_e490
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.sensor.chain import SensorChain, exposure_regions
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
-from satsight.sensor.exposure import ExposureRule
+from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.optics import Optics
 
 BAND_NM = (450.0, 900.0)

@@ -12,7 +12,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from satsight.sensor.detector import DetectorParameters
-from satsight.sensor.exposure import ExposureRule
+from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.optics import DEFAULT_APERTURE_DIAMETER_M, DEFAULT_TRANSMISSION, Optics
 from satsight.sensor.star_catalog import MAX_V_MAG_LIMIT
 
@@ -76,7 +76,7 @@ _EXPOSURE = ExposureRule()
 
 
 class ExposureConfig(_Strict):
-    """How long each frame integrates (``satsight.sensor.exposure``, which it builds).
+    """How long each frame integrates (``satsight.sensor.exposure_rule``, which it builds).
 
     ``mode: auto`` picks, per frame, the time that puts the ``percentile`` of the target's
     focal-plane irradiance at ``fill_fraction`` of full well (a few brighter glints may

@@ -16,7 +16,7 @@ photon-weighted wavelength. Then, in the detector's physical order:
 2. stars: their photons, each through the same optics at its exact sub-pixel position
    (``satsight.sensor.star_field``), added to the focal plane;
 3. exposure: a fixed time, or the time that fills a chosen fraction of full well with the
-   target's bright end (``satsight.sensor.exposure.ExposureRule``);
+   target's bright end (``satsight.sensor.exposure_rule.ExposureRule``);
 4. detector: photons, QE, fixed pattern, dark current, shot noise, full well and blooming,
    read noise, gain, bias and ADC (``satsight.sensor.detector``).
 
@@ -52,7 +52,7 @@ from satsight.sensor.detector import (
     mean_photon_energy_j,
     simulate_detector,
 )
-from satsight.sensor.exposure import ExposureRule
+from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.mtf import band_wavelengths_m, check_render_sampling
 from satsight.sensor.optics import Optics, focal_plane_irradiance_w_m2
 from satsight.sensor.psf import frame_kernel
