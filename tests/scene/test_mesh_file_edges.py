@@ -7,6 +7,7 @@ from __future__ import annotations
 import base64
 import json
 import logging
+import re
 import struct
 import zlib
 from pathlib import Path
@@ -59,7 +60,7 @@ TRIANGLES = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\n"
 def test_bad_face_indices_are_refused_with_the_line(tmp_path: Path, face: str, message: str):
     path = tmp_path / "bad.obj"
     path.write_text(TRIANGLES + "f 1 2 3\n" + face + "\n")
-    with pytest.raises(SatsightError) as caught:
+    with pytest.raises(SatsightError, match=re.escape(f"bad.obj, line 9 ('{face}'): ")) as caught:
         load_mesh(path)
     text = str(caught.value)
     assert text.startswith(f"bad.obj, line 9 ('{face}'): ")
@@ -178,7 +179,7 @@ def test_obj_bad_texture_warns_and_renders_untextured(
 def test_obj_bad_texture_is_an_error_when_strict(tmp_path: Path, case: str) -> None:
     data, reason = BAD_TEXTURES[case]
     path = write_textured_obj(tmp_path, data)
-    with pytest.raises(SatsightError) as caught:
+    with pytest.raises(SatsightError, match=r"target\.mesh\.strict_textures is true") as caught:
         load_mesh(path, strict_textures=True)
     text = str(caught.value)
     assert text.startswith("plate.obj: material 'paint': texture map_Kd 'paint.png' ")
