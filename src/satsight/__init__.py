@@ -11,7 +11,7 @@ The Python interface (``satsight.api``: ``load_scenario``, ``render_frames``,
 ``Simulator``, ``generate``, ``open_dataset``, ``export_dataset``) is importable from here.
 """
 
-__version__ = "0.1.0"
+from satsight.version import __version__
 
 # The Python interface (satsight.api), imported on first use so that ``import satsight``
 # loads neither pydantic nor the renderer.

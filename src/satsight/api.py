@@ -34,7 +34,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from satsight import _API_NAMES
 from satsight.config.overrides import override_scenario
 from satsight.config.scenario import Scenario, parse_scenario
 from satsight.config.scenario import load_scenario as load_scenario_file
@@ -47,8 +46,6 @@ if TYPE_CHECKING:
     from satsight.dataset.frame_files import FrameArrays
     from satsight.pipeline import FrameEngine
     from satsight.scene.mesh import TargetMesh
-
-__all__ = [*_API_NAMES, "ScenarioSource"]
 
 #: What names a scenario: a YAML file's path, the scenario as a mapping (the YAML's keys),
 #: or a ``Scenario`` already validated.

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from satsight.brdf.measurements import BrdfMeasurements
+from satsight.vectors import angle_between_rad
 
 # ----------------------------------------------------------------------------------------
 # Metrics (paper Table 4)
@@ -44,15 +45,6 @@ class FitMetrics:
         }
 
 
-def _angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Angle (rad) between rows of u and v (..., k), stable near 0 and pi."""
-    nu = np.linalg.norm(u, axis=-1, keepdims=True)
-    nv = np.linalg.norm(v, axis=-1, keepdims=True)
-    a = u / np.where(nu > 0, nu, 1.0)
-    b = v / np.where(nv > 0, nv, 1.0)
-    return 2.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
-
-
 def _group_keys(*angles_rad: np.ndarray) -> np.ndarray:
     """Integer group index per row for equal angle tuples (to 1e-7 rad)."""
     stacked = np.round(np.stack(angles_rad, axis=1) * 1e7).astype(np.int64)
@@ -86,7 +78,7 @@ def fit_metrics(measurements: BrdfMeasurements, fitted_per_sr: np.ndarray) -> Fi
         complete = np.all(count == 1, axis=1)
         complete &= (np.linalg.norm(meas_vec, axis=1) > 0) & (np.linalg.norm(fit_vec, axis=1) > 0)
         if np.any(complete):
-            angles = _angle_between(meas_vec[complete], fit_vec[complete])
+            angles = angle_between_rad(meas_vec[complete], fit_vec[complete])
             spectral = float(np.degrees(np.mean(angles)))
 
     # Peak direction per incidence direction and channel.
@@ -100,7 +92,7 @@ def fit_metrics(measurements: BrdfMeasurements, fitted_per_sr: np.ndarray) -> Fi
                 continue
             k_meas = rows[np.argmax(measured[rows])]
             k_fit = rows[np.argmax(fitted[rows])]
-            errors.append(float(_angle_between(wo[k_meas], wo[k_fit])))
+            errors.append(float(angle_between_rad(wo[k_meas], wo[k_fit])))
     peak_error = float(np.degrees(np.mean(errors))) if errors else math.nan
 
     if spectral is not None:

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from satsight.errors import SatsightError
+from satsight.vectors import norm
 
 # How far R @ R.T may be from the identity (and det R from 1) for R_itrs_from_gcrs to count
 # as a rotation: loose enough for matrices stored in float32, tight enough to catch a
@@ -113,16 +114,6 @@ def positive_length(value: float, name: str) -> float:
     if not (math.isfinite(length) and length > 0.0):
         raise SatsightError(f"{name} must be a finite length > 0 m; got {value}")
     return length
-
-
-def norm(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm over the last axis."""
-    return np.linalg.norm(v, axis=-1)
-
-
-def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Angle in [0, pi] between the rows of u and v (N, 3), by atan2 (accurate everywhere)."""
-    return np.arctan2(norm(np.cross(u, v)), np.sum(u * v, axis=-1))
 
 
 def require_nonzero(v: np.ndarray, what: str) -> None:

@@ -26,9 +26,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from satsight.constants import EARTH_EQUATORIAL_RADIUS_M, WGS84_SEMI_MINOR_AXIS_M
-from satsight.ephemeris.geometry import finish, norm, positive_length, rotate, stack
+from satsight.ephemeris.geometry import finish, positive_length, rotate, stack
 from satsight.ephemeris.wgs84 import UNIT_SPHERE_SCALE, ellipsoid_level, geodetic_height_m
 from satsight.errors import SatsightError
+from satsight.vectors import norm
 
 # The Kármán line, 100 km: the conventional lower edge of space (FAI). A line of sight that
 # passes lower than this through the atmosphere is counted as blocked by the Earth.

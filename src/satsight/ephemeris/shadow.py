@@ -40,17 +40,10 @@ from satsight.constants import (
     WGS84_SEMI_MAJOR_AXIS_M,
     WGS84_SEMI_MINOR_AXIS_M,
 )
-from satsight.ephemeris.geometry import (
-    angle_between,
-    finish,
-    norm,
-    positive_length,
-    require_nonzero,
-    rotate,
-    stack,
-)
+from satsight.ephemeris.geometry import finish, positive_length, require_nonzero, rotate, stack
 from satsight.ephemeris.orbits import MU_EARTH_M3_S2
 from satsight.errors import SatsightError
+from satsight.vectors import angle_between_rad, norm
 
 # Nominal solar radius, m: IAU 2015 Resolution B3 (R_sun^N = 6.957e8 m).
 SUN_RADIUS_M = 695_700_000.0
@@ -244,7 +237,7 @@ def sunlit_fraction(
             earth_distance <= earth_radius, earth_distance, f"|position| > {earth_radius} m"
         )
         b = np.arcsin(earth_radius / earth_distance)
-        c = angle_between(to_sun, -r)
+        c = angle_between_rad(to_sun, -r)
         return finish(np.clip(1.0 - _covered_fraction(a, b, c), 0.0, 1.0), single)
     s = rotate(R, to_sun / sun_distance[:, None])
     (r_sphere,) = _to_sphere_space(R, r)
@@ -253,7 +246,7 @@ def sunlit_fraction(
     s_sphere = s * _SPHERE_FROM_ELLIPSOID
     towards_earth = -r_sphere / earth_distance[:, None]
     b = np.arcsin(earth_radius / earth_distance)
-    c = angle_between(s_sphere, towards_earth)
+    c = angle_between_rad(s_sphere, towards_earth)
     a_across = a * _sun_width_in_sphere_space(s, s_sphere, towards_earth)
     return finish(np.clip(1.0 - _covered_fraction(a_across, b, c), 0.0, 1.0), single)
 

@@ -26,10 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from satsight.ephemeris.geometry import angle_between, finish, require_nonzero, stack
+from satsight.ephemeris.geometry import finish, require_nonzero, stack
 from satsight.ephemeris.occultation import DEFAULT_ATMOSPHERE_MARGIN_M, los_clearance_m
 from satsight.ephemeris.shadow import sunlit_fraction
 from satsight.errors import SatsightError
+from satsight.vectors import angle_between_rad
 
 # A frame counts as eclipsed when sunlit_fraction < min_sunlit_fraction - this tolerance,
 # so that exactly 1.0 (full Sun) passes min_sunlit_fraction = 1 and a rounding-level dip in
@@ -54,7 +55,7 @@ def phase_angle_rad(
     to_sun, to_observer = s - t, o - t
     require_nonzero(to_sun, "sun_m - target_m")
     require_nonzero(to_observer, "observer_m - target_m")
-    return finish(angle_between(to_sun, to_observer), single)
+    return finish(angle_between_rad(to_sun, to_observer), single)
 
 
 def sun_boresight_angle_rad(
@@ -70,7 +71,7 @@ def sun_boresight_angle_rad(
     boresight, to_sun = t - o, s - o
     require_nonzero(boresight, "target_m - observer_m")
     require_nonzero(to_sun, "sun_m - observer_m")
-    return finish(angle_between(boresight, to_sun), single)
+    return finish(angle_between_rad(boresight, to_sun), single)
 
 
 # --- per-frame summary ---------------------------------------------------------------------
