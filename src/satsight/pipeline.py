@@ -30,7 +30,6 @@ from satsight.dataset.labels import (
     crop_window_xyxy_px,
     frame_labels,
 )
-from satsight.dataset.preview import PreviewStretch
 from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
@@ -538,7 +537,7 @@ class FrameEngine:
             },
             "render_settings": dataclasses.asdict(scenario.render.settings()),
             "sensor": sensor_summary(self.sensor),
-            "preview": PreviewStretch.of_outputs(scenario.outputs).header(),
+            "preview": scenario.outputs.build_preview().header(),
             "environment_light": {
                 "description": "per frame: environment_sh_radiance_w_m2_sr, earthshine "
                 "and moonshine as real SH, index l(l+1)+m, body frame, direction towards "

@@ -7,10 +7,9 @@ import math
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
 
-from satsight.config.outputs import DEFAULT_ASINH_SOFTENING_DN, OutputsConfig
 from satsight.dataset.preview import (
+    DEFAULT_ASINH_SOFTENING_DN,
     DN_PREVIEW_STRETCH,
     PREVIEW_GAMMA,
     PreviewStretch,
@@ -140,25 +139,19 @@ def test_asinh_stretch_closed_form_and_monotonic(rng) -> None:
         dn_preview_asinh_uint8(dn, bias, bias)
 
 
-def test_outputs_choose_the_stretch_and_labels_name_it() -> None:
-    default = OutputsConfig()
-    assert default.preview_stretch == "asinh"
-    assert default.preview_softening_dn == DEFAULT_ASINH_SOFTENING_DN
-    stretch = PreviewStretch.of_outputs(OutputsConfig(preview_softening_dn=8.0))
-    assert stretch == PreviewStretch("asinh", 8.0)
+def test_labels_name_the_stretch() -> None:
+    assert PreviewStretch() == PreviewStretch("asinh", DEFAULT_ASINH_SOFTENING_DN)
+    stretch = PreviewStretch("asinh", 8.0)
     header = stretch.header()
     assert header["stretch"] == "asinh" and header["softening_dn"] == 8.0
     assert "asinh(x / 8)" in header["formula"]
     assert PreviewStretch.from_header(header) == stretch
-    gamma = PreviewStretch.of_outputs(OutputsConfig(preview_stretch="gamma"))
+    gamma = PreviewStretch("gamma")
     assert gamma.header() == {"stretch": "gamma", "formula": DN_PREVIEW_STRETCH, "gamma": 2.2}
     assert PreviewStretch.from_header(gamma.header()).name == "gamma"
     # Datasets written before the choice hold only the gamma formula.
     assert PreviewStretch.from_header({"stretch": DN_PREVIEW_STRETCH}).name == "gamma"
     assert PreviewStretch.from_header(None).name == "gamma"
-    for bad in ({"preview_stretch": "log"}, {"preview_softening_dn": 0}):
-        with pytest.raises(ValidationError):
-            OutputsConfig(**bad)
     with pytest.raises(SatsightError, match="unknown preview stretch"):
         PreviewStretch("log")  # type: ignore[arg-type]
 

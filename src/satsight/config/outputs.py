@@ -11,17 +11,15 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from satsight.dataset.output_files import OUTPUT_FILE_KEYS
+from satsight.dataset.preview import (
+    DEFAULT_ASINH_SOFTENING_DN,
+    DEFAULT_PREVIEW_STRETCH,
+    PreviewStretch,
+    PreviewStretchName,
+)
 from satsight.errors import SatsightError
 
-#: Output names of the scenario's ``outputs.files`` and the file keys each one writes.
-OUTPUT_FILE_KEYS: dict[str, tuple[str, ...]] = {
-    "dn": ("dn_png16",),
-    "preview": ("preview_png8",),
-    "radiance": ("radiance_exr",),
-    "depth": ("depth_exr",),
-    "normals": ("normals_exr",),
-    "masks": ("object_mask_png", "part_mask_png16", "background_mask_png"),
-}
 OutputName = Literal["dn", "preview", "radiance", "depth", "normals", "masks"]
 ALL_OUTPUTS: tuple[str, ...] = tuple(OUTPUT_FILE_KEYS)
 #: Named profiles accepted by ``--outputs``.
@@ -29,20 +27,6 @@ OUTPUT_PROFILES: dict[str, tuple[str, ...]] = {
     "all": ALL_OUTPUTS,
     "lean": ("dn", "masks"),
 }
-
-
-#: The 8-bit previews' stretches (``satsight.dataset.preview``): ``asinh`` (default: faint
-#: stars and the target both show) or ``gamma`` (the earlier look, byte for byte).
-PreviewStretchName = Literal["asinh", "gamma"]
-PREVIEW_STRETCHES: tuple[str, ...] = ("asinh", "gamma")
-DEFAULT_PREVIEW_STRETCH = "asinh"
-
-#: Softening of the asinh stretch, DN above the bias: below it the stretch is linear, above
-#: it logarithmic (Lupton et al. 2004, PASP 116, 133, Eq. 2, beta = softening). 5 DN is
-#: about 6 read-noise sigma of the default detector (5 e- rms at 5.83 e-/DN = 0.86 DN), so
-#: the noise stays in the darkest levels (1 sigma: 4/255, 3 sigma: 13/255) while a star of
-#: 300 e- peak (51 DN) shows at 76/255 and the target above half full well at 237-255.
-DEFAULT_ASINH_SOFTENING_DN = 5.0
 
 
 class CropConfig(BaseModel):
@@ -85,6 +69,10 @@ class OutputsConfig(BaseModel):
     def file_keys(self) -> tuple[str, ...]:
         """The file keys (``dn_png16``, ...) of the chosen outputs."""
         return tuple(key for name in self.files for key in OUTPUT_FILE_KEYS[name])
+
+    def build_preview(self) -> PreviewStretch:
+        """The stretch of the 8-bit previews this block chooses."""
+        return PreviewStretch(self.preview_stretch, self.preview_softening_dn)
 
 
 def parse_outputs_option(text: str) -> tuple[str, ...]:

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from satsight.config.outputs import OUTPUT_FILE_KEYS
 from satsight.dataset.image_files import read_exr, read_png
 from satsight.dataset.journal import JournalFrames
+from satsight.dataset.output_files import OUTPUT_FILE_KEYS
 from satsight.dataset.reader import Dataset
 from satsight.errors import SatsightError
 
