@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from matplotlib.colors import to_rgba
 
+from figure_checks import figure_pixels, has_colour
 from satsight.ablation import (
     FITTED_VARIANTS,
     VARIANTS,
@@ -57,9 +59,9 @@ def test_orthogonal_colours_are_ninety_degrees_apart():
 
 
 def test_metrics_refuse_mismatched_or_empty_images():
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match=r"images must both be \(H, W, 3\)"):
         image_metrics(np.ones((2, 2, 3)), np.ones((2, 3, 3)))
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match="neither image sees the target"):
         image_metrics(np.zeros((2, 2, 3)), np.zeros((2, 2, 3)))
 
 
@@ -72,7 +74,9 @@ def test_ablation_camera_keeps_the_field_of_view():
 
 
 @pytest.fixture(scope="module")
-def ablation_dir(tmp_path_factory) -> Path:
+def ablation_run(tmp_path_factory) -> tuple[Path, dict[str, list[np.ndarray]]]:
+    """``satsight ablate`` on a one-frame scenario: its output folder, and the radiance
+    images (W m^-2 sr^-1) that ``run_ablation`` rendered for it, by run name."""
     root = tmp_path_factory.mktemp("ablate")
     scenario = {
         "name": "ablation-test",
@@ -85,21 +89,60 @@ def ablation_dir(tmp_path_factory) -> Path:
     config = root / "scenario.yaml"
     config.write_text(yaml.safe_dump(scenario), encoding="utf-8")
     out = root / "out"
-    main(["ablate", str(config), "--out", str(out), "--spp", "32", "--reference-spp", "256",
-          "--width", "48"])  # fmt: skip
-    return out
+    images: dict[str, list[np.ndarray]] = {}
+
+    def keeping_images(*args, **kwargs):
+        result = run_ablation(*args, **kwargs)
+        images.update(result.images)
+        return result
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr("satsight.ablation.run_ablation", keeping_images)
+        main(["ablate", str(config), "--out", str(out), "--spp", "32", "--reference-spp", "256",
+              "--width", "48"])  # fmt: skip
+    return out, images
 
 
-def test_ablate_writes_table_and_figure(ablation_dir: Path):
+@pytest.fixture(scope="module")
+def ablation_dir(ablation_run) -> Path:
+    return ablation_run[0]
+
+
+def _colour_angle_deg(reference: np.ndarray, image: np.ndarray) -> float:
+    """Mean angle between the RGB vectors of two (H, W, 3) images over the pixels where both
+    are non-zero, from the chord between the unit vectors: 2 asin(|a/|a| - b/|b||/2)."""
+    reference, image = reference.astype(np.float64), image.astype(np.float64)
+    a_norm = np.linalg.norm(reference, axis=-1)
+    b_norm = np.linalg.norm(image, axis=-1)
+    both = (a_norm > 0) & (b_norm > 0)
+    a = reference[both] / a_norm[both][:, None]
+    b = image[both] / b_norm[both][:, None]
+    chord = np.linalg.norm(a - b, axis=-1)
+    return float(np.degrees(2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0))).mean())
+
+
+def test_ablate_writes_table_and_figure(ablation_run):
+    ablation_dir, images = ablation_run
     with (ablation_dir / "ablation.csv").open(encoding="utf-8") as handle:
         rows = list(csv.DictReader(handle))
     assert [row["variant"] for row in rows] == list(VARIANTS)
+    (reference,) = images["reference"]
     for row in rows:
         mse = float(row["mse_w2_m4_sr2"])
         assert mse > 0.0
-        assert 0.0 <= float(row["mean_angular_error_deg"]) < 90.0
+        # The table's angle is the colour angle of the rendered images, computed here by
+        # another formula (the chord between unit vectors, not atan2 of cross and dot).
+        (image,) = images[row["variant"]]
+        expected_deg = _colour_angle_deg(reference, image)
+        angle_deg = float(row["mean_angular_error_deg"])
+        assert angle_deg == pytest.approx(expected_deg, rel=1e-9, abs=1e-12)
         assert int(row["frames"]) == 1
-    assert (ablation_dir / "ablation.png").stat().st_size > 10_000
+    # Three rows of panels, one column per run (reference and variants), 3 x 8.5 inches each
+    # at 110 dpi; the metrics' bars in tab:blue.
+    figure = figure_pixels(
+        ablation_dir / "ablation.png", (round(3.0 * (len(VARIANTS) + 1) * 110), round(8.5 * 110))
+    )
+    assert has_colour(figure, to_rgba("tab:blue"))
     fits = json.loads((ablation_dir / "phong_fits.json").read_text(encoding="utf-8"))["fits"]
     assert {row["model"] for row in fits} == set(FITTED_VARIANTS.values())
     for row in fits:
