@@ -12,7 +12,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from satsight import __version__
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.scenario import CameraConfig, Scenario, TargetConfig
 from satsight.constants import (
@@ -23,13 +22,8 @@ from satsight.constants import (
     MOON_MEAN_RADIUS_M,
 )
 from satsight.dataset.frame_files import FrameArrays
-from satsight.dataset.journal import file_checksum
-from satsight.dataset.labels import (
-    KEYPOINT_DEPTH_TOLERANCE,
-    crop_labels,
-    crop_window_xyxy_px,
-    frame_labels,
-)
+from satsight.dataset.header import FarCamera, TargetDescription, labels_header
+from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
 from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
@@ -44,7 +38,7 @@ from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage, SunLight
 from satsight.render.renderer import Renderer
 from satsight.scene.band_reflectance import builtins_from_library, library_materials
-from satsight.scene.keypoints import KEYPOINT_DESCRIPTIONS, target_keypoints_body_m
+from satsight.scene.keypoints import target_keypoints_body_m
 from satsight.scene.loading import load_mesh
 from satsight.scene.material_library import LIBRARY_PREFIX
 from satsight.scene.materials import FIRST_MATERIALS
@@ -52,21 +46,6 @@ from satsight.scene.mesh import TargetMesh
 from satsight.scene.procedural import generate_satellite
 from satsight.sensor.chain import DnImage, SensorChain, blur_radius_px, exposure_regions
 from satsight.sensor.photometry import frame_photometry
-
-CONVENTIONS = {
-    "units": "SI; names carry non-SI units",
-    "quaternion": "scalar-first [qw, qx, qy, qz], Hamilton, qw >= 0",
-    "pose": "x_cam = R(q_cam_from_body) @ x_body + t_cam_from_body_m",
-    "camera_frame": "OpenCV: +x right, +y down, +z boresight",
-    "pixel_origin": "(0, 0) is the centre of the top-left pixel",
-    "depth": "metres along +z_cam; 0 where no surface",
-    "part_mask": "0 background; part id = part index + 1",
-    "keypoints": "target.keypoints_body_m projected (target.keypoints says how they were "
-    "chosen); keypoints_visible: inside the image and not hidden by the target (depth "
-    "buffer, 3 x 3 pixels, tolerance " + KEYPOINT_DEPTH_TOLERANCE + ")",
-    "box_keypoints": "8 bounding-box corners (bit 0: x, bit 1: y, bit 2: z; 0 min, 1 max), "
-    "then the box centre",
-}
 
 
 def build_target(config: TargetConfig, band_nm: tuple[float, float] | None = None) -> TargetMesh:
@@ -334,45 +313,6 @@ def expose_frame(
     return dn_image, {"sensor": labels, **stars}
 
 
-def camera_summary(camera: PinholeCamera) -> dict:
-    """A pinhole camera's numbers, JSON-ready, for labels.json."""
-    return {
-        "focal_length_m": camera.focal_length_m,
-        "pixel_pitch_m": camera.pixel_pitch_m,
-        "image_size_px": [camera.width_px, camera.height_px],
-        "K": camera.K.tolist(),
-        "fov_x_deg": float(np.degrees(camera.fov_x_rad)),
-        "fov_y_deg": float(np.degrees(camera.fov_y_rad)),
-    }
-
-
-def sensor_summary(sensor: SensorChain) -> dict:
-    """The camera's optics, detector and exposure rule, JSON-ready, for labels.json."""
-    return {
-        "description": "images/ hold raw DN (uint16, bias included); per frame: sensor "
-        "(exposure_time_s, saturated_pixel_count, and per region - target, earth, moon - its "
-        "pixel_count, fill_fraction_p99 and saturated_pixel_count) and the stars drawn",
-        "band_nm": list(sensor.band_nm),
-        "effective_wavelength_m": sensor.effective_wavelength_m,
-        "channel_weights_rgb": sensor.channel_weights.tolist(),
-        "channel_photon_weights_rgb": sensor.channel_photon_weights.tolist(),
-        "optics": dataclasses.asdict(sensor.optics),
-        "f_number": sensor.optics.f_number,
-        "detector": dataclasses.asdict(sensor.detector),
-        "exposure": dataclasses.asdict(sensor.exposure),
-        "frame_kernel": {
-            "description": "kernel applied to rendered frames so that their MTF is the "
-            "system MTF up to Nyquist, designed for the render's sub-pixel sampling; the "
-            "renderer adds a ring margin_px wide around the frame",
-            "size_px": int(sensor.psf.shape[0]),
-            "margin_px": sensor.margin_px,
-            "supersampling": sensor.supersampling,
-            "samples_per_pixel": sensor.samples_per_pixel,
-        },
-        "camera_seed": sensor.camera_seed,
-    }
-
-
 @dataclass(frozen=True)
 class RenderedFrame:
     """One frame after the renderer: its numbers, pose, light and images."""
@@ -516,59 +456,34 @@ class FrameEngine:
         """The dataset's description: everything labels.json holds besides its frames."""
         from satsight.render.backend import use_variant
 
-        scenario, camera, mesh = self.scenario, self.camera, self.mesh
-        header = {
-            "satsight_version": __version__,
-            "scenario": scenario.name,
-            "frame_count": self.frame_count,
-            "plan_indices": [int(i) for i in self.plan_indices],
-            "render_variant": use_variant(scenario.render.variant),
-            "conventions": CONVENTIONS,
-            "outputs": {
-                **scenario.outputs.model_dump(mode="json"),
-                "file_keys": list(scenario.outputs.file_keys()),
-            },
-            "camera": camera_summary(camera),
-            "sun": {
-                "description": "per frame: sun_direction_body, sun_direction_cam and "
-                "sun_irradiance_w_m2 (in band, at the target, after the Earth's shadow)",
-                "spectrum": scenario.sun.spectrum,
-                "band_nm": list(scenario.sun.band_nm),
-            },
-            "render_settings": dataclasses.asdict(scenario.render.settings()),
-            "sensor": sensor_summary(self.sensor),
-            "preview": scenario.outputs.build_preview().header(),
-            "environment_light": {
-                "description": "per frame: environment_sh_radiance_w_m2_sr, earthshine "
-                "and moonshine as real SH, index l(l+1)+m, body frame, direction towards "
-                "the source",
-                "sh_order": scenario.render.sh_order,
-            },
-            "target": {
-                **mesh.summary(),
-                "model_obj": "model/target.obj",
-                "keypoints_body_m": self.keypoints_body_m.tolist(),
-                "keypoints": {
-                    "method": scenario.target.keypoints.method,
-                    "count": len(self.keypoints_body_m),
-                    "description": KEYPOINT_DESCRIPTIONS[scenario.target.keypoints.method],
-                },
-                "box_keypoints_body_m": mesh.box_keypoints_body_m.tolist(),
-                # A mesh file edited between an interruption and --resume is refused.
-                "mesh_file_sha256": None
-                if scenario.target.mesh is None
-                else file_checksum(scenario.target.mesh.path)["sha256"],
-            },
-        }
+        scenario = self.scenario
+        far = None
         if "far" in self.modes:
             far_camera, far_sensor = self.modes["far"]
-            header["far_camera"] = {
-                "description": "frames with camera_mode 'far' (range to the target's box "
-                "centre beyond switch_range_m) are taken with this camera and sensor; "
-                "'camera' and 'sensor' above describe the 'primary' frames",
-                "preset": scenario.camera.far.preset,
-                "switch_range_m": scenario.camera.far.switch_range_km * 1e3,
-                "camera": camera_summary(far_camera),
-                "sensor": sensor_summary(far_sensor),
-            }
-        return header
+            far = FarCamera(
+                scenario.camera.far.preset,
+                scenario.camera.far.switch_range_km * 1e3,
+                far_camera,
+                far_sensor,
+            )
+        render_variant = use_variant(scenario.render.variant)
+        return labels_header(
+            scenario_name=scenario.name,
+            plan_indices=self.plan_indices,
+            render_variant=render_variant,
+            outputs=scenario.outputs.model_dump(mode="json"),
+            file_keys=scenario.outputs.file_keys(),
+            camera=self.camera,
+            sensor=self.sensor,
+            sun_spectrum=scenario.sun.spectrum,
+            band_nm=scenario.sun.band_nm,
+            render_settings=scenario.render.settings(),
+            preview=scenario.outputs.build_preview(),
+            target=TargetDescription(
+                self.mesh,
+                self.keypoints_body_m,
+                scenario.target.keypoints.method,
+                None if scenario.target.mesh is None else scenario.target.mesh.path,
+            ),
+            far=far,
+        )
