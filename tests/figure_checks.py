@@ -33,3 +33,16 @@ def has_colour(pixels: np.ndarray, rgba: tuple[float, ...], atol: int = 2) -> bo
     ``atol`` of 255 in every channel (markers and line centres keep their colour exactly)."""
     target = np.round(np.asarray(rgba[:3]) * 255.0)
     return bool(np.any(np.all(np.abs(pixels.astype(int) - target) <= atol, axis=-1)))
+
+
+def check_plane_of_incidence_figure(path: Path, n_channels: int, n_incidences: int) -> None:
+    """A ``satsight.brdf.plot.plot_plane_of_incidence`` figure: one 4.2 x 3.4 inch panel per
+    channel (three to a row) at 110 dpi, and the colour of every incidence angle (viridis
+    from 0 to 0.9) on its markers and curves."""
+    from matplotlib import colormaps
+
+    cols = min(n_channels, 3)
+    rows = -(-n_channels // cols)
+    pixels = figure_pixels(path, (round(4.2 * cols * 110), round(3.4 * rows * 110)))
+    for x in np.linspace(0.0, 0.9, n_incidences):
+        assert has_colour(pixels, colormaps["viridis"](x)), f"no curve of colour viridis({x})"

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 import yaml
 
+from figure_checks import check_plane_of_incidence_figure
 from satsight.brdf.fit import fit_brdf
 from satsight.brdf.fit_files import fit_brdf_command, material_entry
 from satsight.brdf.measurements import (
@@ -167,7 +168,20 @@ def test_fit_recovers_known_parameters(model, channels, truth, seed, with_sigma)
     assert not fit.at_bounds
     z = (fit.values - np.asarray(truth)) / fit.std
     assert np.all(np.abs(z) < RECOVERY_SIGMAS), dict(zip(fit.names, np.round(z, 2), strict=True))
-    assert 0.5 < fit.reduced_chi2 < 1.5 if with_sigma else True
+    dof = m.size - len(fit.names)
+    if with_sigma:
+        # chi^2 / dof of a correct model has mean 1 and standard deviation sqrt(2 / dof).
+        assert abs(fit.reduced_chi2 - 1.0) < RECOVERY_SIGMAS * math.sqrt(2.0 / dof)
+    else:
+        # The residuals' mean square, per degree of freedom, estimates the mean variance of
+        # the generating noise; a sum of dof squared Gaussians of variances sigma_i^2 has
+        # relative standard deviation sqrt(2 sum sigma^4) / sum sigma^2.
+        sigma = 0.01 * evaluate_model(model, params, base.wi(), base.wo(), base.channel)
+        sigma += 0.003 * peak
+        noise_ms = float(np.mean(sigma**2))
+        rel_spread = math.sqrt(2.0 * np.sum(sigma**4)) / np.sum(sigma**2)
+        residual_ms = fit.metrics.mse_sr2 * m.size / dof
+        assert abs(residual_ms / noise_ms - 1.0) < RECOVERY_SIGMAS * rel_spread
     albedo, _ = max_directional_albedo(model, fit.parameters, thetas_deg=DENSE_THETAS_DEG)
     assert albedo <= 1.0 + ALBEDO_TOLERANCE
 
@@ -253,8 +267,8 @@ def test_command_fits_a_fixture_and_writes_yaml_and_plot(tmp_path):
     spec = FIXTURE_SPECS["synthetic_ggx_rgb.csv"]
     report = fit_brdf_command(FIXTURES / "synthetic_ggx_rgb.csv", "ggx", tmp_path / "out")
     assert report.yaml_path == tmp_path / "out" / "synthetic_ggx_rgb_ggx.yaml"
-    assert report.plot_path.stat().st_size > 10_000
-    assert report.plot_path.read_bytes()[:4] == b"\x89PNG"
+    # Three channels, the five incidence angles of ``geometry``.
+    check_plane_of_incidence_figure(report.plot_path, n_channels=3, n_incidences=5)
     entry = yaml.safe_load(report.yaml_path.read_text())
     assert entry["model"] == "ggx"
     assert entry["source"]["csv"].endswith("synthetic_ggx_rgb.csv")
