@@ -42,7 +42,8 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.sensor.chain import PSF_SIZE_PX, SensorChain
 from satsight.sensor.convolution import apply_optics
-from satsight.sensor.detector import DetectorParameters, exposure_for_fill, simulate_detector
+from satsight.sensor.detector import DetectorParameters
+from satsight.sensor.exposure import exposure_for_fill, simulate_detector
 from satsight.sensor.mtf import band_wavelengths_m
 from satsight.sensor.optics import Optics
 from satsight.sensor.psf import frame_kernel

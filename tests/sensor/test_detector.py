@@ -16,21 +16,24 @@ from scipy import stats
 
 from satsight.errors import SatsightError
 from satsight.sensor.detector import (
-    SHOT_NOISE_NORMAL_MIN_MEAN_E,
-    SHOT_NOISE_SPARSE_MAX_MEAN_E,
     DetectorParameters,
-    _draw_camera_maps,
-    _standard_normal_f32,
     expected_electrons,
-    exposure_for_fill,
-    fixed_pattern_maps,
-    mean_electrons_image,
     mean_photon_energy_j,
     photons_per_pixel,
-    read_out_dn,
+)
+from satsight.sensor.exposure import (
+    exposure_for_fill,
+    mean_electrons_image,
     saturate_electrons,
-    shot_noise_electrons,
     simulate_detector,
+)
+from satsight.sensor.fixed_pattern import _draw_camera_maps, fixed_pattern_maps
+from satsight.sensor.noise import (
+    SHOT_NOISE_NORMAL_MIN_MEAN_E,
+    SHOT_NOISE_SPARSE_MAX_MEAN_E,
+    _standard_normal_f32,
+    read_out_dn,
+    shot_noise_electrons,
 )
 
 BAND_NM = (450.0, 900.0)

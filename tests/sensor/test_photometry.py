@@ -39,7 +39,7 @@ from satsight.sensor.photometry import (
     target_irradiance_w_m2,
     v_magnitude_equivalent,
 )
-from satsight.sensor.star_catalog import V_EFFECTIVE_WAVELENGTH_NM, V_ZERO_POINT_W_M2_NM
+from satsight.sensor.star_photometry import V_EFFECTIVE_WAVELENGTH_NM, V_ZERO_POINT_W_M2_NM
 
 E_SUN_W_M2 = 671.5
 RHO = (0.6, 0.4, 0.8)

@@ -27,7 +27,8 @@ from satsight.scene.materials import Material
 from satsight.scene.mesh import merge_parts
 from satsight.sensor.chain import SensorChain
 from satsight.sensor.convolution import apply_optics
-from satsight.sensor.detector import DetectorParameters, exposure_for_fill
+from satsight.sensor.detector import DetectorParameters
+from satsight.sensor.exposure import exposure_for_fill
 from satsight.sensor.mtf import band_wavelengths_m, system_mtf
 from satsight.sensor.optics import Optics
 from satsight.sensor.psf import psf_kernel

@@ -11,14 +11,12 @@ import pytest
 import scipy.constants as const
 
 from satsight.errors import SatsightError
+from satsight.sensor import star_astrometry as sa
 from satsight.sensor import star_catalog as sc
-from satsight.sensor.star_catalog import (
-    aberrate,
-    directions_icrs,
-    load_star_catalog,
-    star_photon_flux_m2_s,
-    temperature_from_b_minus_v,
-)
+from satsight.sensor import star_photometry as sp
+from satsight.sensor.star_astrometry import aberrate, directions_icrs
+from satsight.sensor.star_catalog import load_star_catalog
+from satsight.sensor.star_photometry import star_photon_flux_m2_s, temperature_from_b_minus_v
 
 MAS = math.pi / (180 * 3600e3)
 ARCSEC = 1000 * MAS
@@ -124,14 +122,14 @@ def test_every_bright_hipparcos_star_has_an_entry():
         )
     )
     bright = hip["hp_mag"] < 9.0
-    u = sc._propagate(
+    u = sa.propagate_directions(
         hip["ra_rad"][bright],
         hip["dec_rad"][bright],
         hip["pm_ra_cosdec_mas_yr"][bright] * MAS,
         hip["pm_dec_mas_yr"][bright] * MAS,
         24.75,
     )
-    tree = cKDTree(sc.unit_vectors(catalog.ra_rad, catalog.dec_rad))
+    tree = cKDTree(sa.unit_vectors(catalog.ra_rad, catalog.dec_rad))
     dist, idx = tree.query(u, k=4, distance_upper_bound=5 * ARCSEC)
     ok = np.isfinite(dist)
     dmag = np.abs(catalog.v_mag[np.where(ok, idx, 0)] - hip["hp_mag"][bright][:, None])
@@ -154,7 +152,7 @@ def test_colour_fit_rederived_and_temperature():
     c = rng.uniform(-0.4, 2.7, 5000)
     bv = np.polynomial.polynomial.polyval(c, fits["bv_from_bprp"]) + rng.normal(0, 0.05, 5000)
     v = rng.uniform(3, 9, 5000)
-    refit = sc.fit_colour_relations(c, bv, v + rng.normal(0, 0.03, 5000), v)
+    refit = sp.fit_colour_relations(c, bv, v + rng.normal(0, 0.03, 5000), v)
     assert np.allclose(refit["bv_from_bprp"], fits["bv_from_bprp"], atol=0.02)
     assert refit["bv_from_bprp_rms_mag"] == pytest.approx(0.05, rel=0.1)
     t = temperature_from_b_minus_v(np.array([0.65, np.nan, -5.0, 9.0]))
@@ -165,19 +163,19 @@ def test_colour_fit_rederived_and_temperature():
 
 def test_g_minus_v_riello_values():
     """Riello et al. (2021) Table C.2 polynomial at c = 0, 1 and clipped outside."""
-    assert sc.g_minus_v(0.0) == pytest.approx(-0.02704)
-    assert sc.g_minus_v(1.0) == pytest.approx(-0.02704 + 0.01424 - 0.2156 + 0.01426)
-    assert sc.g_minus_v(5.0) == sc.g_minus_v(2.75)
+    assert sp.g_minus_v(0.0) == pytest.approx(-0.02704)
+    assert sp.g_minus_v(1.0) == pytest.approx(-0.02704 + 0.01424 - 0.2156 + 0.01426)
+    assert sp.g_minus_v(5.0) == sp.g_minus_v(2.75)
 
 
 def test_cross_match_is_one_to_one_and_closest_first():
-    u_b = sc.unit_vectors(np.array([0.0, 1.0 * ARCSEC, 0.5]), np.zeros(3))
-    u_a = sc.unit_vectors(np.array([0.4 * ARCSEC, 0.6 * ARCSEC, 0.5 + 3 * ARCSEC]), np.zeros(3))
-    ia, ib, sep = sc.cross_match(u_a, u_b, np.zeros(3), np.zeros(3), 1.5 * ARCSEC, 1.5)
+    u_b = sa.unit_vectors(np.array([0.0, 1.0 * ARCSEC, 0.5]), np.zeros(3))
+    u_a = sa.unit_vectors(np.array([0.4 * ARCSEC, 0.6 * ARCSEC, 0.5 + 3 * ARCSEC]), np.zeros(3))
+    ia, ib, sep = sa.cross_match(u_a, u_b, np.zeros(3), np.zeros(3), 1.5 * ARCSEC, 1.5)
     pairs = dict(zip(ia.tolist(), ib.tolist(), strict=True))
     assert pairs == {0: 0, 1: 1}  # a1 is closer to b1 (0.4") than a0 (0.6"); a2 too far
     assert np.allclose(sorted(sep / ARCSEC), [0.4, 0.4], atol=1e-6)
-    ia, ib, _ = sc.cross_match(u_a, u_b, np.zeros(3), np.full(3, 2.0), 1.5 * ARCSEC, 1.5)
+    ia, ib, _ = sa.cross_match(u_a, u_b, np.zeros(3), np.full(3, 2.0), 1.5 * ARCSEC, 1.5)
     assert ia.size == 0  # magnitude test rejects every pair
 
 
@@ -224,11 +222,11 @@ def test_proper_motion_matches_astropy():
             frame="icrs",
             obstime=Time(2016.0, format="jyear"),
         ).apply_space_motion(new_obstime=Time(2026.0, format="jyear"))
-    ref = sc.unit_vectors(coord.ra.rad, coord.dec.rad)
+    ref = sa.unit_vectors(coord.ra.rad, coord.dec.rad)
     err = np.linalg.norm(ours - ref, axis=1)
     assert err.max() < 1 * MAS, err.max() / MAS
     # The motion itself is large: sanity that the test is not trivial.
-    moved = np.arccos(np.clip(np.sum(ours * sc.unit_vectors(cat.ra_rad, cat.dec_rad), 1), -1, 1))
+    moved = np.arccos(np.clip(np.sum(ours * sa.unit_vectors(cat.ra_rad, cat.dec_rad), 1), -1, 1))
     assert moved.max() > 50 * ARCSEC
 
 
@@ -300,7 +298,7 @@ def planck_b_lambda(lam_m: float, t_k: float) -> float:
     ],
 )
 def test_photon_flux_matches_series_closed_form(v, t, band):
-    scale = sc.V_ZERO_POINT_W_M2_NM * 1e9 * 10 ** (-0.4 * v) / planck_b_lambda(545e-9, t)
+    scale = sp.V_ZERO_POINT_W_M2_NM * 1e9 * 10 ** (-0.4 * v) / planck_b_lambda(545e-9, t)
     expected = scale * planck_photons_closed_form(t, *band)
     got = star_photon_flux_m2_s(np.array([v]), np.array([t]), band)[0]
     assert got == pytest.approx(expected, rel=1e-10)

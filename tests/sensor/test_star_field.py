@@ -14,12 +14,15 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.sensor import detector as det
+from satsight.sensor import exposure as ex
 from satsight.sensor import limiting_magnitude as lm
+from satsight.sensor import noise
 from satsight.sensor import star_field as sf
 from satsight.sensor import star_stamps as st
 from satsight.sensor.mtf import band_wavelengths_m, diffraction_mtf
 from satsight.sensor.optics import Optics
-from satsight.sensor.star_catalog import directions_icrs, load_star_catalog, unit_vectors
+from satsight.sensor.star_astrometry import directions_icrs, unit_vectors
+from satsight.sensor.star_catalog import load_star_catalog
 
 EPOCH = "2026-03-20T12:00:00Z"
 BAND = (450.0, 900.0)
@@ -169,7 +172,7 @@ def test_mask_pixel_hides_the_star_on_it(catalog):
 
 
 def one_star(x: float, y: float, v: float = 6.0, t: float = 5772.0) -> sf.StarsInView:
-    from satsight.sensor.star_catalog import star_photon_flux_m2_s
+    from satsight.sensor.star_photometry import star_photon_flux_m2_s
 
     flux = star_photon_flux_m2_s(np.array([v]), np.array([t]), BAND)
     return sf.StarsInView(
@@ -332,9 +335,9 @@ def test_isolated_star_dn_reproduces_photon_count():
     rng = np.random.default_rng(np.random.SeedSequence([2026, 3]))
     sums = []
     for _ in range(k):
-        e = det.shot_noise_electrons(mean_e, rng)
-        e = det.saturate_electrons(e, params.full_well_e, params.blooming)
-        dn = det.read_out_dn(e, params, rng).astype(np.float64)
+        e = noise.shot_noise_electrons(mean_e, rng)
+        e = ex.saturate_electrons(e, params.full_well_e, params.blooming)
+        dn = noise.read_out_dn(e, params, rng).astype(np.float64)
         sums.append((dn - params.bias_dn).sum() * params.conversion_gain_e_per_dn)
     dark = n_px * params.dark_current_e_per_s * t
     recovered = (np.mean(sums) - dark) / params.quantum_efficiency
@@ -361,7 +364,7 @@ def test_limiting_magnitude_monte_carlo(preset):
     mean_e = det.expected_electrons(
         photons, params.quantum_efficiency, 1.0, params.dark_current_e_per_s, 0.0, t
     )
-    dn = det.read_out_dn(det.shot_noise_electrons(mean_e, rng), params, rng).astype(np.float64)
+    dn = noise.read_out_dn(noise.shot_noise_electrons(mean_e, rng), params, rng).astype(np.float64)
     s = res.fraction.shape[0]
     signal_e = ((dn - params.bias_dn) * params.conversion_gain_e_per_dn).reshape(k, s, s)
     signal_e = (

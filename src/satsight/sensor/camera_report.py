@@ -12,7 +12,7 @@ import math
 
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
 from satsight.sensor.chain import SensorChain
-from satsight.sensor.detector import exposure_for_fill
+from satsight.sensor.exposure import exposure_for_fill
 from satsight.sensor.limiting_magnitude import limiting_magnitude_details
 from satsight.sensor.optics import focal_plane_irradiance_w_m2
 

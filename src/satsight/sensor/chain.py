@@ -18,7 +18,7 @@ photon-weighted wavelength. Then, in the detector's physical order:
 3. exposure: a fixed time, or the time that fills a chosen fraction of full well with the
    target's bright end (``satsight.sensor.exposure_rule.ExposureRule``);
 4. detector: photons, QE, fixed pattern, dark current, shot noise, full well and blooming,
-   read noise, gain, bias and ADC (``satsight.sensor.detector``).
+   read noise, gain, bias and ADC (``satsight.sensor.exposure.simulate_detector``).
 
 Reflected sunlight keeps the Sun's spectrum within each channel's third of the band
 (materials are grey there), so each channel's photons are its power over h c / lambda_c,
@@ -46,12 +46,8 @@ from satsight.lighting.solar_spectrum import (
 )
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.sensor.convolution import apply_optics
-from satsight.sensor.detector import (
-    DetectorParameters,
-    exposure_for_fill,
-    mean_photon_energy_j,
-    simulate_detector,
-)
+from satsight.sensor.detector import DetectorParameters, mean_photon_energy_j
+from satsight.sensor.exposure import exposure_for_fill, simulate_detector
 from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.mtf import band_wavelengths_m, check_render_sampling
 from satsight.sensor.optics import Optics, focal_plane_irradiance_w_m2

@@ -12,15 +12,13 @@ from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import check_band_nm
 from satsight.sensor.detector import DetectorParameters
 from satsight.sensor.optics import Optics
-from satsight.sensor.star_catalog import (
-    star_photon_flux_m2_s,
-)
 from satsight.sensor.star_field import (
     DEFAULT_BAND_NM,
     DEFAULT_STAMP_RADIUS_PX,
     check_exposure_time_s,
     collecting_area_m2,
 )
+from satsight.sensor.star_photometry import star_photon_flux_m2_s
 from satsight.sensor.star_stamps import psf_stamps
 
 

@@ -21,16 +21,17 @@ packages pinned by version and SHA-256:
 Construction (numbers measured on the pinned files)
 ---------------------------------------------------
 1. Hipparcos positions are moved from J1991.25 to J2016.0 with their proper motions (on the
-   sphere, see :func:`directions_icrs`; parallax and radial velocity ignored) and each
-   Hipparcos star is paired one-to-one (greedy, closest pair first) with a Gaia source
-   within 1.5 arcsec (scipy ``cKDTree`` on unit vectors) whose V magnitude (below) is within
-   1.5 mag of Hp. The magnitude test uses Gaia's V rather than G because G - V reaches
-   -1.3 mag for red stars: with |G - Hp| < 1.5 mag, 524 of the positional pairs would fail
-   (mostly red giants and Mira variables), with |V - Hp| < 1.5 mag 31 do. Result: 109 757
-   Gaia sources paired with a Hipparcos star, plus the 70 fill-ins joined by HIP number.
-   Of the 78 348 Hipparcos stars with Hp < 9, 56 find no partner (38 have no Gaia source at
-   all within 1.5 arcsec: doubles whose Hipparcos photocentre is 1.5-3 arcsec from the Gaia
-   component, and bright stars missing from the Gaia file, e.g. theta Aur, HIP 28380).
+   sphere, see :func:`satsight.sensor.star_astrometry.directions_icrs`; parallax and radial
+   velocity ignored) and each Hipparcos star is paired one-to-one (greedy, closest pair
+   first) with a Gaia source within 1.5 arcsec (scipy ``cKDTree`` on unit vectors) whose V
+   magnitude (below) is within 1.5 mag of Hp. The magnitude test uses Gaia's V rather than G
+   because G - V reaches -1.3 mag for red stars: with |G - Hp| < 1.5 mag, 524 of the
+   positional pairs would fail (mostly red giants and Mira variables), with |V - Hp| < 1.5
+   mag 31 do. Result: 109 757 Gaia sources paired with a Hipparcos star, plus the 70
+   fill-ins joined by HIP number. Of the 78 348 Hipparcos stars with Hp < 9, 56 find no
+   partner (38 have no Gaia source at all within 1.5 arcsec: doubles whose Hipparcos
+   photocentre is 1.5-3 arcsec from the Gaia component, and bright stars missing from the
+   Gaia file, e.g. theta Aur, HIP 28380).
 2. Hipparcos stars left unpaired and with no Gaia source of similar magnitude
    (|V - Hp| < 1.5) within 5 arcsec are added from Hipparcos alone ("supplement", source_id
    = -HIP; 8075 stars, nearly all fainter than the Gaia file's G = 10, 53 of them with
@@ -70,14 +71,9 @@ Gaia measured with V <= 9.97 is in; plus the Hipparcos fill-ins and supplement f
 brightest stars. The catalogue holds 130 706 stars with V <= 9 and 217 667 with V <= 9.5;
 Tycho-2-based counts give 139 375 to magnitude 9 (see test_star_catalog).
 
-Photometry: a star's spectrum is a blackbody at its temperature scaled to its V magnitude at
-545 nm with the V zero point f_lambda = 3.631e-11 W m^-2 nm^-1 (Bessell, Castelli & Plez
-1998, A&A 333, 231, Table A2); see :func:`star_photon_flux_m2_s`.
-
-Aberration: :func:`aberrate` applies the exact special-relativistic aberration. The
-gravitational deflection of light by the Sun is not applied: 4.07 mas (1 + cos E) / sin E at
-solar elongation E, at most ~16 mas beyond 30 deg from the Sun (Explanatory Supplement to the
-Astronomical Almanac, 3rd ed., 2013, Sec. 7.2.4).
+Where a star appears (proper motion, aberration) is computed in
+:mod:`satsight.sensor.star_astrometry`; its colours, V magnitude and in-band photon flux in
+:mod:`satsight.sensor.star_photometry`.
 """
 
 from __future__ import annotations
@@ -93,11 +89,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.constants as const
-from scipy.spatial import cKDTree
 
 from satsight.errors import SatsightError
-from satsight.lighting.solar_spectrum import check_band_nm
+from satsight.sensor.star_astrometry import (
+    ARCSEC_RAD,
+    MAS_RAD,
+    cross_match,
+    propagate_directions,
+    unit_vectors,
+)
+from satsight.sensor.star_photometry import (
+    GV_CITATION,
+    GV_COLOUR_RANGE,
+    TEFF_CITATION,
+    V_HP_FIT_RANGE_BV,
+    fit_colour_relations,
+    g_minus_v,
+    temperature_from_b_minus_v,
+)
 
 # --- data packages ---------------------------------------------------------------------------
 
@@ -113,9 +122,6 @@ INSTALL_HINT = (
 
 GAIA_CITATION = "Gaia Collaboration, Vallenari et al. 2023, A&A 674, A1 (Gaia DR3)"
 HIPPARCOS_CITATION = "van Leeuwen 2007, A&A 474, 653 (Hipparcos, the new reduction; CDS I/311)"
-GV_CITATION = "Riello et al. 2021, A&A 649, A3, Table C.2 (G - V from BP - RP)"
-TEFF_CITATION = "Ballesteros 2012, EPL 97, 34008 (T_eff from B - V)"
-ZERO_POINT_CITATION = "Bessell, Castelli & Plez 1998, A&A 333, 231, Table A2 (V zero point)"
 
 _GAIA_MAGIC = b"GDR3"
 _GAIA_HEADER_BYTES = 16
@@ -133,14 +139,12 @@ _GAIA_DTYPE = np.dtype(
 # B-V, e_B-V (van Leeuwen 2007, CDS I/311 ReadMe).
 _HIP_COLUMNS = (0, 4, 5, 7, 8, 19, 23, 24)
 
-# --- epochs, angles, constants ---------------------------------------------------------------
+# --- epochs and matching ---------------------------------------------------------------------
 
 REFERENCE_EPOCH_JYEAR = 2016.0
 """Epoch of the catalogue's positions, Julian year (TT): Gaia DR3's J2016.0."""
 HIPPARCOS_EPOCH_JYEAR = 1991.25
 """Epoch of the Hipparcos positions, Julian year (TT)."""
-ARCSEC_RAD = math.pi / (180.0 * 3600.0)
-MAS_RAD = ARCSEC_RAD / 1000.0
 MATCH_RADIUS_ARCSEC = 1.5
 """Largest Gaia - Hipparcos separation at J2016.0 for a pair (arcsec)."""
 MATCH_MAX_DELTA_MAG = 1.5
@@ -150,23 +154,6 @@ SUPPLEMENT_RADIUS_ARCSEC = 5.0
 within this radius (arcsec)."""
 MAX_V_MAG_LIMIT = 9.95
 """Faintest V limit the catalogue is complete to (the Gaia file stops at G = 10)."""
-SOLAR_TEMPERATURE_K = 5772.0
-"""Nominal solar effective temperature (IAU 2015 Resolution B3), used without a colour."""
-GV_COEFFS = (-0.02704, 0.01424, -0.2156, 0.01426)
-"""G - V as a polynomial in c = BP - RP, increasing powers (Riello et al. 2021, Table C.2)."""
-GV_COLOUR_RANGE = (-0.5, 2.75)
-"""Range of BP - RP where the G - V polynomial is valid; c is clipped to it."""
-BV_CLIP_FOR_TEMPERATURE = (-0.4, 2.0)
-"""B - V is clipped to this range before the Ballesteros (2012) formula."""
-V_EFFECTIVE_WAVELENGTH_NM = 545.0
-"""Effective wavelength of the Johnson V band (Bessell et al. 1998, Table A2), nm."""
-V_ZERO_POINT_W_M2_NM = 3.631e-11
-"""Spectral flux density f_lambda of a V = 0 star at 545 nm (Bessell et al. 1998, Table A2:
-363.1e-11 erg cm^-2 s^-1 A^-1), W m^-2 nm^-1."""
-SPEED_OF_LIGHT_M_S = const.c
-_FIT_RANGE_BV = (-0.4, 2.0)
-_NODES_PER_PANEL = 16
-_PANEL_WIDTH_NM = 100.0
 
 
 # --- the catalogue ---------------------------------------------------------------------------
@@ -293,220 +280,6 @@ def read_hipparcos_file(path: Path) -> dict[str, np.ndarray]:
     }
 
 
-# --- geometry on the sphere ------------------------------------------------------------------
-
-
-def unit_vectors(ra_rad: np.ndarray, dec_rad: np.ndarray) -> np.ndarray:
-    """(N, 3) unit vectors of ICRS directions (ra, dec) in radians."""
-    cd = np.cos(dec_rad)
-    return np.stack([cd * np.cos(ra_rad), cd * np.sin(ra_rad), np.sin(dec_rad)], axis=-1)
-
-
-def _east_north(ra_rad: np.ndarray, dec_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Local east p and north q unit vectors (N, 3) at (ra, dec)."""
-    sa, ca = np.sin(ra_rad), np.cos(ra_rad)
-    sd, cd = np.sin(dec_rad), np.cos(dec_rad)
-    p = np.stack([-sa, ca, np.zeros_like(sa)], axis=-1)
-    q = np.stack([-sd * ca, -sd * sa, cd], axis=-1)
-    return p, q
-
-
-def _propagate(ra, dec, pm_ra_cosdec, pm_dec, years: float) -> np.ndarray:
-    """u(t) = normalise(u0 + dt (mu_a* p + mu_d q)): straight-line motion of a star at
-    infinite distance with zero radial velocity (rates in rad/yr, dt in years)."""
-    p, q = _east_north(ra, dec)
-    u = unit_vectors(ra, dec)
-    u += years * (pm_ra_cosdec[:, None] * p + pm_dec[:, None] * q)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    return u
-
-
-def _check_epoch_jyear(epoch_jyear: float) -> float:
-    try:
-        t = float(epoch_jyear)
-    except (TypeError, ValueError):
-        t = math.nan
-    if not (math.isfinite(t) and 1000.0 <= t <= 3000.0):
-        raise SatsightError(
-            f"epoch_jyear must be a Julian year (TT) such as 2026.2; got {epoch_jyear!r}. "
-            "Convert a time with satsight.sensor.star_field.julian_year_tt"
-        )
-    return t
-
-
-def directions_icrs(catalog: StarCatalog, epoch_jyear: float) -> np.ndarray:
-    """(N, 3) ICRS unit vectors from the solar-system barycentre to the stars at an epoch.
-
-    epoch_jyear: Julian year on TT (e.g. 2026.2). The catalogue's directions at J2016.0 are
-    moved with their proper motions as straight-line motion of a star at infinite distance
-    with zero radial velocity: u(t) = normalise(u0 + dt (mu_a* p + mu_d q)), with p, q the
-    local east and north unit vectors and dt = epoch - 2016.0 in Julian years. This is
-    ERFA's ``starpm`` / astropy's ``apply_space_motion`` in the limit of zero parallax (they
-    agree to < 1 mas over decades; test_star_catalog). No aberration (see :func:`aberrate`).
-    """
-    t = _check_epoch_jyear(epoch_jyear)
-    return _propagate(
-        catalog.ra_rad,
-        catalog.dec_rad,
-        catalog.pm_ra_cosdec_rad_per_yr,
-        catalog.pm_dec_rad_per_yr,
-        t - catalog.reference_epoch_jyear,
-    )
-
-
-def aberrate(directions: np.ndarray, observer_velocity_bcrs_m_s: np.ndarray) -> np.ndarray:
-    """(N, 3) apparent directions seen by an observer moving relative to the barycentre.
-
-    directions: (N, 3) unit vectors to the sources (BCRS/ICRS axes), e.g. from
-    :func:`directions_icrs`. observer_velocity_bcrs_m_s: (3,) observer velocity relative to
-    the solar-system barycentre (m/s), e.g. the Earth's plus the spacecraft's geocentric one.
-    Exact special-relativistic aberration (Kaplan et al. 1989, AJ 97, 1197; Explanatory
-    Supplement 2013, Eq. 7.40 in rigorous form): with beta = v / c,
-    gamma = 1 / sqrt(1 - beta^2),
-    u' = (u / gamma + (1 + u.beta / (1 + 1 / gamma)) beta) / (1 + u.beta).
-    u' is a unit vector; sources move towards the apex by ~ |beta| sin(theta).
-    """
-    u = _check_directions(directions)
-    v = _check_vector3("observer_velocity_bcrs_m_s", observer_velocity_bcrs_m_s, "m/s")
-    beta = v / SPEED_OF_LIGHT_M_S
-    b2 = float(beta @ beta)
-    if b2 >= 1.0:
-        raise SatsightError(
-            f"observer_velocity_bcrs_m_s has speed {math.sqrt(b2) * SPEED_OF_LIGHT_M_S:.4g} m/s, "
-            "not below the speed of light; pass a velocity in m/s"
-        )
-    inv_gamma = math.sqrt(1.0 - b2)
-    ub = u @ beta
-    out = u * inv_gamma + (1.0 + ub / (1.0 + inv_gamma))[:, None] * beta
-    out /= (1.0 + ub)[:, None]
-    return out
-
-
-def _check_directions(directions: np.ndarray) -> np.ndarray:
-    u = np.asarray(directions, dtype=np.float64)
-    if u.ndim != 2 or u.shape[1] != 3:
-        raise SatsightError(f"directions must be an (N, 3) array of unit vectors; got {u.shape}")
-    if not np.all(np.isfinite(u)) or (u.size and np.max(np.abs(np.sum(u * u, 1) - 1.0)) > 1e-9):
-        raise SatsightError(
-            "directions must be finite unit vectors (N, 3); got NaN, inf or a length other "
-            "than 1. Normalise them first"
-        )
-    return u
-
-
-def _check_vector3(name: str, value: object, unit: str) -> np.ndarray:
-    v = np.asarray(value, dtype=np.float64)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise SatsightError(f"{name} must be a finite 3-vector in {unit}; got {value!r}")
-    return v
-
-
-# --- colours and magnitudes ------------------------------------------------------------------
-
-
-def g_minus_v(bp_minus_rp: np.ndarray) -> np.ndarray:
-    """G - V (mag) from BP - RP (Riello et al. 2021, Table C.2), c clipped to [-0.5, 2.75]."""
-    c = np.clip(np.asarray(bp_minus_rp, dtype=np.float64), *GV_COLOUR_RANGE)
-    return np.polynomial.polynomial.polyval(c, GV_COEFFS)
-
-
-def temperature_from_b_minus_v(b_minus_v: np.ndarray) -> np.ndarray:
-    """Blackbody effective temperature (K) from B - V (Ballesteros 2012, Eq. 14).
-
-    T = 4600 K (1 / (0.92 (B - V) + 1.7) + 1 / (0.92 (B - V) + 0.62)), B - V clipped to
-    [-0.4, 2.0] (about 21 700 K to 3 200 K); NaN gives the solar 5772 K.
-    """
-    bv = np.asarray(b_minus_v, dtype=np.float64)
-    x = np.clip(np.nan_to_num(bv, nan=0.0), *BV_CLIP_FOR_TEMPERATURE)
-    t = 4600.0 * (1.0 / (0.92 * x + 1.7) + 1.0 / (0.92 * x + 0.62))
-    return np.where(np.isnan(bv), SOLAR_TEMPERATURE_K, t)
-
-
-def _clipped_polyfit(x: np.ndarray, y: np.ndarray, degree: int) -> tuple[np.ndarray, float, int]:
-    """Least-squares polynomial (increasing powers) with three 5-sigma clipping passes;
-    returns (coefficients, rms of the kept residuals, number kept)."""
-    keep = np.ones(x.shape, dtype=bool)
-    for _ in range(3):
-        coeffs = np.polynomial.polynomial.polyfit(x[keep], y[keep], degree)
-        resid = y - np.polynomial.polynomial.polyval(x, coeffs)
-        keep = np.abs(resid) <= 5.0 * np.std(resid[keep])
-    coeffs = np.polynomial.polynomial.polyfit(x[keep], y[keep], degree)
-    resid = y[keep] - np.polynomial.polynomial.polyval(x[keep], coeffs)
-    return coeffs, float(np.sqrt(np.mean(resid**2))), int(keep.sum())
-
-
-def fit_colour_relations(
-    bp_minus_rp: np.ndarray, b_minus_v: np.ndarray, v_gaia: np.ndarray, hp_mag: np.ndarray
-) -> dict[str, Any]:
-    """Fit, on stars paired in Gaia and Hipparcos, B - V as a cubic in BP - RP (for
-    c in [-0.5, 2.75]) and V - Hp as a quadratic in B - V (for B - V in [-0.4, 2.0]).
-
-    All inputs (K,) for the K paired stars with both colours known. Returns a dict with
-    ``bv_from_bprp`` / ``v_minus_hp_from_bv`` coefficients (increasing powers), their rms
-    residuals (mag) and the number of stars kept after clipping.
-    """
-    in_c = (bp_minus_rp >= GV_COLOUR_RANGE[0]) & (bp_minus_rp <= GV_COLOUR_RANGE[1])
-    bv_coeffs, bv_rms, bv_n = _clipped_polyfit(bp_minus_rp[in_c], b_minus_v[in_c], 3)
-    in_bv = (b_minus_v >= _FIT_RANGE_BV[0]) & (b_minus_v <= _FIT_RANGE_BV[1]) & in_c
-    dv_coeffs, dv_rms, dv_n = _clipped_polyfit(b_minus_v[in_bv], v_gaia[in_bv] - hp_mag[in_bv], 2)
-    return {
-        "bv_from_bprp": tuple(float(c) for c in bv_coeffs),
-        "bv_from_bprp_rms_mag": bv_rms,
-        "bv_from_bprp_n": bv_n,
-        "v_minus_hp_from_bv": tuple(float(c) for c in dv_coeffs),
-        "v_minus_hp_from_bv_rms_mag": dv_rms,
-        "v_minus_hp_from_bv_n": dv_n,
-    }
-
-
-# --- cross-match -----------------------------------------------------------------------------
-
-
-def cross_match(
-    u_a: np.ndarray,
-    u_b: np.ndarray,
-    mag_a: np.ndarray,
-    mag_b: np.ndarray,
-    radius_rad: float,
-    max_delta_mag: float,
-    k: int = 4,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One-to-one pairs between two lists of unit vectors (Na, 3), (Nb, 3).
-
-    A pair needs a separation below ``radius_rad`` and |mag_a - mag_b| < max_delta_mag; among
-    the k nearest candidates of each star of list a, pairs are taken closest first and each
-    star is used at most once (greedy assignment). Returns (index_a, index_b,
-    separation_rad), each (P,).
-    """
-    tree = cKDTree(u_b)
-    chord = 2.0 * math.sin(0.5 * radius_rad)
-    dist, idx = tree.query(u_a, k=k, distance_upper_bound=chord)
-    ia = np.repeat(np.arange(u_a.shape[0]), k)
-    ib, d = idx.ravel(), dist.ravel()
-    ok = np.isfinite(d)
-    ia, ib, d = ia[ok], ib[ok], d[ok]
-    ok = np.abs(mag_b[ib] - mag_a[ia]) < max_delta_mag
-    order = np.argsort(d[ok], kind="stable")
-    ia, ib, d = ia[ok][order], ib[ok][order], d[ok][order]
-    taken_a, taken_b, taken_d = [], [], []
-    while ia.size:
-        first_a = np.zeros(ia.size, dtype=bool)
-        first_a[np.unique(ia, return_index=True)[1]] = True
-        first_b = np.zeros(ib.size, dtype=bool)
-        first_b[np.unique(ib, return_index=True)[1]] = True
-        win = first_a & first_b
-        taken_a.append(ia[win])
-        taken_b.append(ib[win])
-        taken_d.append(d[win])
-        left = ~np.isin(ia, ia[win]) & ~np.isin(ib, ib[win])
-        ia, ib, d = ia[left], ib[left], d[left]
-    if not taken_a:
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, np.zeros(0)
-    sep = 2.0 * np.arcsin(0.5 * np.concatenate(taken_d))
-    return np.concatenate(taken_a), np.concatenate(taken_b), sep
-
-
 # --- building the catalogue ------------------------------------------------------------------
 
 
@@ -536,7 +309,7 @@ def _full_catalog() -> StarCatalog:
     u_gaia = unit_vectors(ra_g, dec_g)
     pm_ra = hip["pm_ra_cosdec_mas_yr"] * MAS_RAD
     pm_dec = hip["pm_dec_mas_yr"] * MAS_RAD
-    u_hip = _propagate(
+    u_hip = propagate_directions(
         hip["ra_rad"],
         hip["dec_rad"],
         pm_ra,
@@ -604,7 +377,7 @@ def _full_catalog() -> StarCatalog:
     )
     bv = np.where(np.isfinite(bv_hip), bv_hip, np.where(has_colour, bv_poly, np.nan))
     v_from_hip = hip["hp_mag"][rows] + np.polynomial.polynomial.polyval(
-        np.clip(np.nan_to_num(bv_hip), *_FIT_RANGE_BV), fits["v_minus_hp_from_bv"]
+        np.clip(np.nan_to_num(bv_hip), *V_HP_FIT_RANGE_BV), fits["v_minus_hp_from_bv"]
     )
     v = np.where(has_colour | ~has_hip, v_gaia, v_from_hip)
     pm_ra_g = np.where(has_hip, pm_ra[rows], 0.0)
@@ -614,7 +387,7 @@ def _full_catalog() -> StarCatalog:
     s = supplement
     bv_s = hip["b_minus_v"][s]
     v_s = hip["hp_mag"][s] + np.polynomial.polynomial.polyval(
-        np.clip(np.nan_to_num(bv_s), *_FIT_RANGE_BV), fits["v_minus_hp_from_bv"]
+        np.clip(np.nan_to_num(bv_s), *V_HP_FIT_RANGE_BV), fits["v_minus_hp_from_bv"]
     )
     ra_s = np.arctan2(u_hip[s, 1], u_hip[s, 0]) % (2.0 * math.pi)
     dec_s = np.arcsin(np.clip(u_hip[s, 2], -1.0, 1.0))
@@ -692,62 +465,3 @@ def load_star_catalog(v_mag_limit: float = 9.5) -> StarCatalog:
     full = _full_catalog()
     n = int(np.searchsorted(full.v_mag, limit, side="right"))
     return replace(full.take(slice(0, n)), v_mag_limit=limit, provenance=dict(full.provenance))
-
-
-# --- photometry ------------------------------------------------------------------------------
-
-
-def _planck_shape(wavelength_m: np.ndarray, temperature_k: np.ndarray) -> np.ndarray:
-    """B_lambda(T) / (2 h c^2), m^-5: lambda^-5 / (exp(h c / (lambda k T)) - 1)."""
-    x = const.h * const.c / (wavelength_m * const.k * temperature_k)
-    return wavelength_m**-5 / np.expm1(x)
-
-
-def _check_stars(v_mag: np.ndarray, temperature_k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    v = np.atleast_1d(np.asarray(v_mag, dtype=np.float64))
-    t = np.atleast_1d(np.asarray(temperature_k, dtype=np.float64))
-    try:
-        v, t = np.broadcast_arrays(v, t)
-    except ValueError as exc:
-        raise SatsightError(
-            f"v_mag {v.shape} and temperature_k {t.shape} must have the same (N,) shape"
-        ) from exc
-    if v.ndim != 1:
-        raise SatsightError(f"v_mag and temperature_k must be (N,) arrays; got shape {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise SatsightError("v_mag must be finite V magnitudes; got NaN or inf")
-    if not np.all((t >= 1000.0) & (t <= 1e5)):
-        raise SatsightError(
-            "temperature_k must be blackbody temperatures from 1000 to 100000 K; got "
-            f"values from {np.nanmin(t) if t.size else 0:g} to {np.nanmax(t) if t.size else 0:g}"
-        )
-    return v, t
-
-
-def star_photon_flux_m2_s(
-    v_mag: np.ndarray, temperature_k: np.ndarray, band_nm: tuple[float, float]
-) -> np.ndarray:
-    """In-band photon flux of stars at the top of the aperture, photons s^-1 m^-2, (N,).
-
-    v_mag: (N,) Johnson V magnitudes. temperature_k: (N,) blackbody temperatures (K).
-    band_nm: (lo, hi) pass band in nm. The spectrum is a blackbody B_lambda(T) scaled so that
-    f_lambda(545 nm) = 3.631e-11 W m^-2 nm^-1 x 10^(-0.4 V) (Bessell, Castelli & Plez 1998,
-    Table A2), counted as photons (lambda / (h c)) and integrated over the band with
-    composite Gauss-Legendre quadrature (16 nodes per <= 100 nm panel; relative error
-    < 1e-12 for T >= 1000 K). A V = 0 star delivers ~1.0e8 photons s^-1 m^-2 nm^-1 near
-    545 nm. Extinction-free: no atmosphere in space.
-    """
-    lo, hi = check_band_nm(band_nm)
-    v, t = _check_stars(v_mag, temperature_k)
-    panels = max(1, math.ceil((hi - lo) / _PANEL_WIDTH_NM))
-    x, w = np.polynomial.legendre.leggauss(_NODES_PER_PANEL)
-    edges = np.linspace(lo, hi, panels + 1)
-    half = 0.5 * np.diff(edges)
-    lam_nm = ((edges[:-1] + half)[:, None] + half[:, None] * x[None, :]).ravel()
-    weights_nm = (half[:, None] * w[None, :]).ravel()
-    lam_m = lam_nm * 1e-9
-    shape = _planck_shape(lam_m[None, :], t[:, None])  # (N, nodes)
-    ref = _planck_shape(np.array([V_EFFECTIVE_WAVELENGTH_NM * 1e-9]), t)  # (N,)
-    f_v = V_ZERO_POINT_W_M2_NM * 10.0 ** (-0.4 * v)  # W m^-2 nm^-1 at 545 nm
-    photons_per_nm = (shape / ref[:, None]) * (lam_m / (const.h * const.c))[None, :]
-    return f_v * (photons_per_nm @ weights_nm)

@@ -3,7 +3,7 @@
 Chain, for one frame:
 
 1. :func:`stars_in_view`: catalogue directions at the epoch (proper motion,
-   :func:`satsight.sensor.star_catalog.directions_icrs`), aberrated for the camera's
+   :func:`satsight.sensor.star_astrometry.directions_icrs`), aberrated for the camera's
    barycentric velocity (the Earth's, from DE421, plus the camera's geocentric one), rotated
    into the camera frame and projected with the pinhole model; stars behind occluding
    spheres (the Earth with an atmosphere margin, the Moon) or behind the rendered target
@@ -38,12 +38,9 @@ from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import check_band_nm
 from satsight.sensor.optics import Optics
-from satsight.sensor.star_catalog import (
-    StarCatalog,
-    aberrate,
-    directions_icrs,
-    star_photon_flux_m2_s,
-)
+from satsight.sensor.star_astrometry import aberrate, directions_icrs
+from satsight.sensor.star_catalog import StarCatalog
+from satsight.sensor.star_photometry import star_photon_flux_m2_s
 
 DEFAULT_STAMP_RADIUS_PX = 8
 """Half-width of the square pixel stamp of each star (17 x 17 px)."""

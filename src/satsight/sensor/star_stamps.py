@@ -15,9 +15,6 @@ from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import check_band_nm
 from satsight.sensor.mtf import band_wavelengths_m, defocus_mtf, diffraction_mtf
 from satsight.sensor.optics import Optics
-from satsight.sensor.star_catalog import (
-    SOLAR_TEMPERATURE_K,
-)
 from satsight.sensor.star_field import (
     DEFAULT_STAMP_RADIUS_PX,
     N_PSF_WAVELENGTHS,
@@ -25,6 +22,7 @@ from satsight.sensor.star_field import (
     StarsInView,
     star_photon_counts,
 )
+from satsight.sensor.star_photometry import SOLAR_TEMPERATURE_K
 
 
 def _oversampling(optics: Optics, pixel_pitch_m: float, band_nm: tuple[float, float]) -> int:
