@@ -15,6 +15,7 @@ import scipy.constants as const
 from scipy import stats
 
 from satsight.errors import SatsightError
+from satsight.sensor import fixed_pattern
 from satsight.sensor.detector import (
     DetectorParameters,
     expected_electrons,
@@ -249,8 +250,16 @@ def test_same_seed_same_bytes_different_seed_different() -> None:
 def test_fixed_pattern_depends_only_on_camera_seed() -> None:
     params = DetectorParameters()
     prnu_a, dsnu_a = fixed_pattern_maps((32, 48), params, 4)
-    np.random.default_rng(0).standard_normal(100)  # no global or shared state involved
+    # Disturb the state the maps could leak from or into: a frame's temporal generator,
+    # drawn through the whole detector (which reads this camera's maps), and the
+    # process-wide cache of camera maps, emptied so that the second call draws the maps
+    # afresh instead of returning the cached arrays.
+    rng = np.random.default_rng(0)
+    simulate_detector(np.full((32, 48), 1e-3), 1.0, params, BAND_NM, rng, 4)
+    with fixed_pattern._CAMERA_MAPS_LOCK:
+        fixed_pattern._CAMERA_MAPS.clear()
     prnu_b, dsnu_b = fixed_pattern_maps((32, 48), params, 4)
+    assert not np.shares_memory(prnu_a, prnu_b)  # drawn again, not the cached arrays
     np.testing.assert_array_equal(prnu_a, prnu_b)
     np.testing.assert_array_equal(dsnu_a, dsnu_b)
     prnu_c, dsnu_c = fixed_pattern_maps((32, 48), params, 5)
@@ -260,12 +269,13 @@ def test_fixed_pattern_depends_only_on_camera_seed() -> None:
     _, dsnu_d = fixed_pattern_maps((32, 48), dataclasses.replace(params, prnu_fraction=0.0), 4)
     np.testing.assert_array_equal(dsnu_a, dsnu_d)
     assert not prnu_a.flags.writeable
-    # The mean-electron image of one camera does not depend on the temporal generator.
+    # The mean-electron image of one camera does not depend on the temporal generator: the
+    # frames drawn in between (different generators) leave it unchanged.
     irradiance = np.full((32, 48), 1e-3)
-    np.testing.assert_array_equal(
-        mean_electrons_image(irradiance, 1.0, params, BAND_NM, 4),
-        mean_electrons_image(irradiance, 1.0, params, BAND_NM, 4),
-    )
+    before = mean_electrons_image(irradiance, 1.0, params, BAND_NM, 4)
+    for seed in (1, 2):
+        simulate_detector(irradiance, 1.0, params, BAND_NM, np.random.default_rng(seed), 4)
+    np.testing.assert_array_equal(mean_electrons_image(irradiance, 1.0, params, BAND_NM, 4), before)
 
 
 # --- exposure -------------------------------------------------------------------------

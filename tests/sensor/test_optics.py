@@ -40,23 +40,27 @@ def test_optics_defaults_and_f_number():
     )
 
 
+_F3 = {"aperture_diameter_m": 0.3, "focal_length_m": 3.0}  # a valid f/10 telescope
+_DEFOCUS = "defocus_blur_diameter_m .* must be a finite number >= 0"
+
+
 @pytest.mark.parametrize(
-    "kwargs",
+    ("kwargs", "match"),
     [
-        {"aperture_diameter_m": 0.0, "focal_length_m": 3.0},
-        {"aperture_diameter_m": 0.3, "focal_length_m": -1.0},
-        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "transmission": 80.0},
-        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "obscuration_ratio": 1.0},
-        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "jitter_rms_rad": -1e-6},
-        {"aperture_diameter_m": 3.0, "focal_length_m": 0.3},
-        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": -1e-6},
-        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": math.nan},
-        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": math.inf},
-        {"aperture_diameter_m": 0.3, "focal_length_m": 3.0, "defocus_blur_diameter_m": "far"},
+        ({**_F3, "aperture_diameter_m": 0.0}, "aperture_diameter_m must be a positive"),
+        ({**_F3, "focal_length_m": -1.0}, "focal_length_m must be a positive"),
+        ({**_F3, "transmission": 80.0}, r"transmission must be in \(0, 1\]"),
+        ({**_F3, "obscuration_ratio": 1.0}, r"obscuration_ratio .* must be in \[0, 1\)"),
+        ({**_F3, "jitter_rms_rad": -1e-6}, "jitter_rms_rad must be a finite number >= 0"),
+        ({"aperture_diameter_m": 3.0, "focal_length_m": 0.3}, "f-number f/D = 0.1 is below 1"),
+        ({**_F3, "defocus_blur_diameter_m": -1e-6}, _DEFOCUS),
+        ({**_F3, "defocus_blur_diameter_m": math.nan}, _DEFOCUS),
+        ({**_F3, "defocus_blur_diameter_m": math.inf}, _DEFOCUS),
+        ({**_F3, "defocus_blur_diameter_m": "far"}, _DEFOCUS),
     ],
 )
-def test_optics_rejects_bad_values(kwargs):
-    with pytest.raises(SatsightError):
+def test_optics_rejects_bad_values(kwargs, match):
+    with pytest.raises(SatsightError, match=match):
         Optics(**kwargs)
 
 
@@ -87,5 +91,5 @@ def test_irradiance_closed_form():
         rtol=REL,
     )
     assert focal_plane_irradiance_w_m2(radiance.astype(np.float32), OPTICS).dtype == np.float32
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match=r"field angles .* in \(-pi/2, pi/2\)"):
         focal_plane_irradiance_w_m2(radiance, OPTICS, np.full((4, 5), 2.0))

@@ -15,6 +15,7 @@ import pytest
 from scipy import integrate
 from scipy.special import j0, j1, jv
 
+from kernel_taps import frame_kernel_taps
 from satsight.errors import SatsightError
 from satsight.sensor.mtf import (
     band_wavelengths_m,
@@ -68,7 +69,7 @@ def test_psf_normalised_symmetric_centred():
     np.testing.assert_allclose(k, k.T, atol=1e-15)
     assert np.unravel_index(np.argmax(k), k.shape) == (7, 7)
     assert np.all(k >= 0)
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match="size_px must be a positive odd integer"):
         psf_kernel(OPTICS, lam, None, 5e-6, 16)
 
 
@@ -293,16 +294,40 @@ def test_frame_kernel_sums_to_one_is_symmetric_and_peaks_at_the_centre(sampling)
     assert again[20, 20] > 0.5
 
 
+@pytest.mark.parametrize("preset", ["wide_field", "high_resolution"])
+@pytest.mark.parametrize("supersampling", [1, 2])
+def test_frame_kernel_taps_are_the_fourier_coefficients_of_the_designed_response(
+    preset, supersampling
+):
+    # The taps from their defining integral over the Nyquist square, by quadrature
+    # (kernel_taps; converged to 1e-13 at 384 nodes per axis), against the inverse-DFT
+    # design. The design adds the aliases k[m + n l] of its n = 512 grid: taps fall off as
+    # 1 / m^2 along the axes (about -0.0126 at m = 2), so one alias is ~0.0126 (2 / 510)^2
+    # = 2e-7 and a tap gathers a few of them, on and off the axes: ~1e-6 (1.3e-6 measured).
+    # Tolerance 3e-6 per tap.
+    optics = Optics.for_preset(preset)
+    k = frame_kernel(optics, BAND, None, PITCH_M, FRAME_KERNEL_PX, supersampling)
+    q = frame_kernel_taps(optics, BAND, PITCH_M, FRAME_KERNEL_PX, supersampling)
+    np.testing.assert_allclose(k, q, rtol=0, atol=3e-6)
+
+
 def test_frame_kernel_negative_taps_are_the_figures_of_the_design_notes():
-    # One centre sample at f/7: the taps the design notes quote (the band-limited PSF that a
-    # point-sampled frame needs has negative side lobes).
-    k = frame_kernel(Optics.for_preset("wide_field"), BAND, None, PITCH_M, FRAME_KERNEL_PX)
-    assert k[20, 20] == pytest.approx(0.655, abs=0.002)
-    assert k[20, 22] == pytest.approx(-0.0126, abs=0.0005)
-    assert k.min() == k[20, 22]
-    assert k[k < 0].sum() == pytest.approx(-0.089, abs=0.002)
-    # A straight edge barely undershoots: the step response along a row stays above -2e-4.
-    assert np.cumsum(k.sum(axis=0)).min() > -2e-4
+    # One centre sample: the figures docs/design.md quotes ("Negative taps and the clip at
+    # 0"), from the taps' defining integral, each to half a unit of its last quoted digit.
+    # The band-limited PSF that a point-sampled frame needs has negative side lobes.
+    for preset, centre_tap, negative_sum in (
+        ("wide_field", -0.0126, -0.089),
+        ("high_resolution", -0.0116, -0.082),
+    ):
+        q = frame_kernel_taps(Optics.for_preset(preset), BAND, PITCH_M, FRAME_KERNEL_PX)
+        # The most negative tap: two pixels from the centre (equal to rounding on each axis).
+        assert q.min() == pytest.approx(q[20, 22], abs=1e-15)
+        assert q[20, 22] == pytest.approx(centre_tap, abs=0.00005)
+        assert q[q < 0].sum() == pytest.approx(negative_sum, abs=0.0005)
+        # A straight edge barely undershoots (design notes: ~1.3e-4 of the step): the step
+        # response along a row, the running sum of the column sums, dips below 0 by less
+        # than 2e-4.
+        assert -2e-4 < np.cumsum(q.sum(axis=0)).min() < 0
 
 
 def test_frame_kernel_rejects_bad_sizes_and_sampling():
