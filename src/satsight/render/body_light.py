@@ -18,7 +18,9 @@ See ``satsight.lighting.scene_bodies`` for the model and its numpy twin.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,6 +28,46 @@ from satsight.lighting.scene_bodies import BODY_IDS, SceneBody
 
 SLOTS = ("earth", "moon")
 _TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True, eq=False)
+class BodySlot:
+    """One body slot's per-frame opaque values (Dr.Jit scalars).
+
+    center_render_m: the body's centre in render space (body frame, origin at the mesh
+    centre), m. R_fixed_from_body, R_body_from_fixed: rotations between the target's body
+    frame and the body's fixed frame. inv_semi_axes_per_m: 1 / the ellipsoid's semi-axes,
+    m^-1. radius_m: its bounding-sphere radius, m. sun_irradiance_over_pi_w_m2: the Sun's
+    irradiance at the body over pi, W m^-2. albedo_rgb: uniform albedo (the Moon's; the
+    Earth's albedo is the frame's texture). sun_direction_body: unit vector towards the Sun.
+    An absent body sits far away with zero irradiance.
+    """
+
+    center_render_m: object
+    R_fixed_from_body: object
+    R_body_from_fixed: object
+    inv_semi_axes_per_m: object
+    radius_m: object
+    sun_irradiance_over_pi_w_m2: object
+    albedo_rgb: object
+    sun_direction_body: object
+
+
+@dataclass(frozen=True, eq=False)
+class BodyFrameValues:
+    """The bodies of one frame for the kernels.
+
+    slots: the Earth's and the Moon's ``BodySlot``. earth_albedo: the Earth slot's albedo
+    texture (mi.Texture2f). earth_v_range: the texture's v coordinates of its first and last
+    row centres. p_earth: the probability that a light sample picks the Earth (opaque
+    Float). any_lit: whether a body lights the target at all (host bool).
+    """
+
+    slots: tuple[BodySlot, ...]
+    earth_albedo: object
+    earth_v_range: tuple[float, float]
+    p_earth: object
+    any_lit: bool
 
 
 class BodyLight:
@@ -67,11 +109,11 @@ class BodyLight:
             self._textures[key] = (texture, None if body is None else body.albedo_map)
         return self._textures[key][0], np.asarray(data.shape[:2])
 
-    def frame_values(self, bodies: tuple[SceneBody, ...]) -> dict:
+    def frame_values(self, bodies: tuple[SceneBody, ...]) -> BodyFrameValues:
         """Opaque per-frame values of the two slots from the light field's bodies."""
         mi, dr = self._mi, self._dr
         by_name = {b.name: b for b in bodies}
-        values: dict = {"slots": []}
+        slots = []
         for name in SLOTS:
             body = by_name.get(name)
             if body is None:
@@ -81,23 +123,22 @@ class BodyLight:
                 center = body.center_body_m - self._origin_body_m
                 axes, R = body.semi_axes_m, body.R_body_from_fixed.T
                 e, albedo, sun = body.sun_irradiance_w_m2, body.albedo_rgb, body.sun_direction_body
-            slot = {
-                "center": mi.Point3f(*(float(c) for c in center)),
-                "R_fixed_from_body": mi.Matrix3f(R.astype(np.float32)),
-                "R_body_from_fixed": mi.Matrix3f(R.T.astype(np.float32)),
-                "inv_axes": mi.Vector3f(*(float(1.0 / a) for a in axes)),
-                "radius": mi.Float(float(axes.max())),
-                "e_over_pi": mi.Float(float(e / math.pi)),
-                "albedo": mi.Color3f(*(float(a) for a in albedo)),
-                "sun": mi.Vector3f(*(float(c) for c in sun)),
-            }
-            dr.make_opaque(*slot.values())
-            values["slots"].append(slot)
+            slot = BodySlot(
+                center_render_m=mi.Point3f(*(float(c) for c in center)),
+                R_fixed_from_body=mi.Matrix3f(R.astype(np.float32)),
+                R_body_from_fixed=mi.Matrix3f(R.T.astype(np.float32)),
+                inv_semi_axes_per_m=mi.Vector3f(*(float(1.0 / a) for a in axes)),
+                radius_m=mi.Float(float(axes.max())),
+                sun_irradiance_over_pi_w_m2=mi.Float(float(e / math.pi)),
+                albedo_rgb=mi.Color3f(*(float(a) for a in albedo)),
+                sun_direction_body=mi.Vector3f(*(float(c) for c in sun)),
+            )
+            dr.make_opaque(*(getattr(slot, f.name) for f in dataclasses.fields(slot)))
+            slots.append(slot)
         earth = by_name.get("earth")
         texture, shape = self._texture(earth)
-        values["texture"] = texture
         rows = float(shape[0])
-        values["v_range"] = (0.5 / rows, 1.0 - 0.5 / rows)
+        v_range = (0.5 / rows, 1.0 - 0.5 / rows)
         # Light-sampling choice: the Earth's share of the bodies' power, roughly
         # E * albedo * solid angle (only a choice of samples; any value gives the right mean).
         weights = []
@@ -111,17 +152,16 @@ class BodyLight:
             weights.append(body.sun_irradiance_w_m2 * (0.05 + body.albedo_rgb.mean()) * sin2)
         total = sum(weights)
         p_earth = 0.5 if total == 0.0 else weights[0] / total
-        values["p_earth"] = mi.Float(float(p_earth))
-        dr.make_opaque(values["p_earth"])
-        values["any"] = total > 0.0
-        return values
+        p_earth_value = mi.Float(float(p_earth))
+        dr.make_opaque(p_earth_value)
+        return BodyFrameValues(tuple(slots), texture, v_range, p_earth_value, total > 0.0)
 
     # --- kernels ---------------------------------------------------------------------------
-    def _slot_hit(self, slot: dict, origin, direction, active):
+    def _slot_hit(self, slot: BodySlot, origin, direction, active):
         """(hit, t, unit normal in the fixed frame) of a ray on one slot's ellipsoid."""
         mi, dr = self._mi, self._dr
-        R, inv = slot["R_fixed_from_body"], slot["inv_axes"]
-        o = (R @ (origin - slot["center"])) * inv
+        R, inv = slot.R_fixed_from_body, slot.inv_semi_axes_per_m
+        o = (R @ (origin - slot.center_render_m)) * inv
         d = (R @ direction) * inv
         a = dr.squared_norm(d)
         t_c = -dr.dot(d, o) / a
@@ -132,29 +172,29 @@ class BodyLight:
         n_fixed = dr.normalize(dr.fma(d, t, o) * inv)
         return hit, t, mi.Vector3f(n_fixed)
 
-    def _slot_radiance(self, values: dict, k: int, n_fixed, hit):
+    def _slot_radiance(self, values: BodyFrameValues, k: int, n_fixed, hit):
         """Radiance of slot ``k``'s surface with fixed-frame normal n_fixed."""
         mi, dr = self._mi, self._dr
-        slot = values["slots"][k]
-        n_body = slot["R_body_from_fixed"] @ n_fixed
-        cos_sun = dr.maximum(dr.dot(n_body, slot["sun"]), 0.0)
+        slot = values.slots[k]
+        n_body = slot.R_body_from_fixed @ n_fixed
+        cos_sun = dr.maximum(dr.dot(n_body, slot.sun_direction_body), 0.0)
         if k == 0:
             lat = dr.asin(dr.clip(n_fixed.z, -1.0, 1.0))
             lon = dr.atan2(n_fixed.y, n_fixed.x)
-            lo, hi = values["v_range"]
+            lo, hi = values.earth_v_range
             u = lon * (1.0 / _TWO_PI) + 0.5
             v = dr.clip(0.5 - lat * (1.0 / math.pi), lo, hi)
-            albedo = mi.Color3f(*values["texture"].eval(mi.Point2f(u, v), active=hit))
+            albedo = mi.Color3f(*values.earth_albedo.eval(mi.Point2f(u, v), active=hit))
         else:
-            albedo = slot["albedo"]
-        return dr.select(hit, albedo * (slot["e_over_pi"] * cos_sun), 0.0)
+            albedo = slot.albedo_rgb
+        return dr.select(hit, albedo * (slot.sun_irradiance_over_pi_w_m2 * cos_sun), 0.0)
 
-    def radiance(self, values: dict, origin, direction, active):
+    def radiance(self, values: BodyFrameValues, origin, direction, active):
         """(radiance Color3f, body id UInt32: 0 none, 1 Earth, 2 Moon) along rays from
         ``origin`` (render space) in unit ``direction``: the nearest body's surface."""
         mi, dr = self._mi, self._dr
-        hit0, t0, n0 = self._slot_hit(values["slots"][0], origin, direction, active)
-        hit1, t1, n1 = self._slot_hit(values["slots"][1], origin, direction, active)
+        hit0, t0, n0 = self._slot_hit(values.slots[0], origin, direction, active)
+        hit1, t1, n1 = self._slot_hit(values.slots[1], origin, direction, active)
         hit1 &= ~hit0 | (t1 < t0)
         hit0 &= ~hit1
         value = self._slot_radiance(values, 0, n0, hit0) + self._slot_radiance(values, 1, n1, hit1)
@@ -163,32 +203,32 @@ class BodyLight:
         )
         return value, body
 
-    def _cone(self, slot: dict, p):
+    def _cone(self, slot: BodySlot, p):
         """Axis (unit), cos alpha and 1 - cos alpha of a slot's bounding cone from p."""
         dr = self._dr
-        to_center = slot["center"] - p
+        to_center = slot.center_render_m - p
         distance2 = dr.squared_norm(to_center)
-        sin2 = dr.minimum(dr.square(slot["radius"]) / distance2, 1.0)
+        sin2 = dr.minimum(dr.square(slot.radius_m) / distance2, 1.0)
         cos_max = dr.safe_sqrt(1.0 - sin2)
         return to_center * dr.rsqrt(distance2), cos_max, sin2 / (1.0 + cos_max)
 
-    def light_pdf(self, values: dict, p, direction):
+    def light_pdf(self, values: BodyFrameValues, p, direction):
         """Solid-angle density of ``sample`` choosing ``direction`` from p."""
         dr = self._dr
         total = 0.0
-        for k, share in enumerate((values["p_earth"], 1.0 - values["p_earth"])):
-            axis, cos_max, one_minus = self._cone(values["slots"][k], p)
+        for k, share in enumerate((values.p_earth, 1.0 - values.p_earth)):
+            axis, cos_max, one_minus = self._cone(values.slots[k], p)
             inside = dr.dot(direction, axis) >= cos_max
             density = dr.select(inside & (one_minus > 0.0), 1.0 / (_TWO_PI * one_minus), 0.0)
             total = total + share * density
         return total
 
-    def sample(self, values: dict, p, u_choice, u1, u2):
+    def sample(self, values: BodyFrameValues, p, u_choice, u1, u2):
         """A direction towards one body (chosen with probability ``p_earth`` for the
         Earth), uniform in its bounding cone seen from p, and its density ``light_pdf``."""
         mi, dr = self._mi, self._dr
-        earth = u_choice < values["p_earth"]
-        cones = [self._cone(slot, p) for slot in values["slots"]]
+        earth = u_choice < values.p_earth
+        cones = [self._cone(slot, p) for slot in values.slots]
         axis = dr.select(earth, cones[0][0], cones[1][0])
         one_minus = dr.select(earth, cones[0][2], cones[1][2])
         one_minus_cos = u1 * one_minus

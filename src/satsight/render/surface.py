@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,6 +20,9 @@ from satsight.render import ggx, phong
 from satsight.render.settings import RenderSettings
 from satsight.render.textures import TextureTables, guarded
 from satsight.scene.materials import Material
+
+if TYPE_CHECKING:
+    from satsight.render.path_records import PathVertex
 
 
 @dataclasses.dataclass(frozen=True)
@@ -150,10 +154,10 @@ class SurfaceModel:
             if not isinstance(getattr(self._params, f.name), str)
         ]
 
-    def at(self, part, active, hit: dict | None = None, frame=None):
+    def at(self, part, active, hit: PathVertex | None = None, frame=None):
         """The model's parameters at the lanes' hits (``SurfaceHit``): each part's values,
-        textured at ``hit["uv"]`` (with mip level from ``hit["lod"]`` where given), and
-        the geometric normal ``hit["n_geo"]`` in the shading ``frame`` (mi.Frame3f). Gather
+        textured at ``hit.uv`` (with mip level ``hit.mip_level`` where given), and the
+        geometric normal ``hit.normal_geo`` in the shading ``frame`` (mi.Frame3f). Gather
         once per surface hit and pass the result to the calls below."""
         import drjit as dr
 
@@ -166,15 +170,15 @@ class SurfaceModel:
         params = dataclasses.replace(self._params, **changes)
         n_geo_local = None
         if self.shading_normals and hit is not None and frame is not None:
-            n_geo_local = frame.to_local(hit["n_geo"])
+            n_geo_local = frame.to_local(hit.normal_geo)
         return SurfaceHit(params, n_geo_local)
 
-    def _apply_textures(self, values: dict, part, active, hit: dict) -> None:
+    def _apply_textures(self, values: dict, part, active, hit: PathVertex) -> None:
         """Replace the gathered values by their textured ones where a part has textures."""
         import drjit as dr
 
         mi, tex = self._mi, self.textures
-        uv, lod = hit["uv"], hit.get("lod")
+        uv, lod = hit.uv, hit.mip_level
         replace = tex.replaces(part, active)
         if self.model == "ggx":
             base, metallic, roughness = values["base"], values["metallic"], values["roughness"]

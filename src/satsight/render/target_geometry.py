@@ -23,6 +23,9 @@ would turn black.
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
+
 import numpy as np
 
 from satsight.render.textures import TextureTables, guarded
@@ -35,6 +38,63 @@ _MIN_RAY_OFFSET_M = 1e-5
 VIEW_COSINE_MIN = 0.05
 # Grazing views stretch a pixel's footprint by 1 / cos; capped at 1 / 0.01 (mip-mapping).
 _MIN_FOOTPRINT_COSINE = 0.01
+
+
+@dataclass(frozen=True, eq=False)
+class SurfacePoint:
+    """A point on the target's triangles, per lane (Dr.Jit arrays).
+
+    point_m: the point in render space (body frame, origin at the mesh centre), m.
+    normal_geo: the triangle's stored unit normal (either side of the surface), body frame.
+    part: part index. face: triangle index. u, v: barycentrics of the point on the
+    triangle (point = v0 + u e1 + v e2).
+    """
+
+    point_m: object
+    normal_geo: object
+    part: object
+    face: object
+    u: object
+    v: object
+
+    def where(self, condition, other: SurfacePoint) -> SurfacePoint:
+        """This point where ``condition`` holds, ``other`` elsewhere (field by field)."""
+        import drjit as dr
+
+        return SurfacePoint(
+            *(
+                dr.select(condition, getattr(self, f.name), getattr(other, f.name))
+                for f in dataclasses.fields(self)
+            )
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class RayHit:
+    """The first surface a ray stops at. hit: Bool, the ray stops at the target.
+    distance_m: distance from the ray's origin to the surface along its unit direction, m
+    (0 for a miss). surface: the point hit."""
+
+    hit: object
+    distance_m: object
+    surface: SurfacePoint
+
+
+@dataclass(frozen=True, eq=False)
+class ShadingGeometry:
+    """The normals and texture coordinates of a hit seen from one side.
+
+    normal: unit shading normal on the viewer's side (interpolated, normal mapped and
+    adapted to the view, see the module docstring), body frame. normal_facing: unit
+    geometric normal on the viewer's side. uv: texture coordinates (Point2f) or None
+    without textures. mip_level: log2 of the ray's footprint on the surface in texture
+    units (mip-mapping), or None.
+    """
+
+    normal: object
+    normal_facing: object
+    uv: object = None
+    mip_level: object = None
 
 
 class TargetGeometry:
@@ -135,53 +195,49 @@ class TargetGeometry:
         gap = np.linalg.norm(camera_render_m) - self.mesh.bounding_radius_m
         return float(max(0.0, gap - margin_m))
 
-    def surface_at(self, face, u, v, active) -> dict:
-        """Hit point (from the barycentrics u, v on triangle ``face``), unit geometric
-        normal and part of a hit, with the hit's face, u and v."""
+    def surface_at(self, face, u, v, active) -> SurfacePoint:
+        """The point at barycentrics (u, v) on triangle ``face``, with its unit geometric
+        normal and part."""
         mi, dr = self._mi, self._dr
         p = (
             dr.gather(mi.Vector3f, self.face_v0, face, active)
             + u * dr.gather(mi.Vector3f, self.face_e1, face, active)
             + v * dr.gather(mi.Vector3f, self.face_e2, face, active)
         )
-        return {
-            "p": p,
-            "n_geo": dr.gather(mi.Vector3f, self.face_n, face, active),
-            "part": dr.gather(mi.UInt32, self.face_part, face, active),
-            "face": face,
-            "u": u,
-            "v": v,
-        }
+        return SurfacePoint(
+            point_m=p,
+            normal_geo=dr.gather(mi.Vector3f, self.face_n, face, active),
+            part=dr.gather(mi.UInt32, self.face_part, face, active),
+            face=face,
+            u=u,
+            v=v,
+        )
 
-    def shading(self, surf: dict, wo, footprint_m=None) -> dict:
-        """The normals and texture coordinates of a hit ``surf`` seen from direction
-        ``wo`` (unit, towards the viewer).
+    def shading(self, surf: SurfacePoint, active, wo, footprint_m=None) -> ShadingGeometry:
+        """The normals and texture coordinates of the hits ``surf`` (on lanes ``active``)
+        seen from direction ``wo`` (unit, towards the viewer).
 
-        Returns ``n``: unit shading normal on the viewer's side (interpolated, normal
-        mapped, adapted; see the module docstring), ``n_facing``: unit geometric normal on
-        the viewer's side; with textures ``uv`` (Point2f) and, given ``footprint_m`` (the
-        width of the ray's footprint across its direction at the hit, m), ``lod``: log2 of
-        the footprint on the surface, in texture units (for mip-mapping). For a flat
-        untextured mesh ``n`` is ``n_facing``.
+        footprint_m: the width of the ray's footprint across its direction at the hit, m;
+        given, with textures, the result has a mip level. For a flat untextured mesh the
+        shading normal is the facing geometric normal.
         """
         mi, dr = self._mi, self._dr
-        n_geo = surf["n_geo"]
+        n_geo = surf.normal_geo
         n_facing = dr.select(dr.dot(n_geo, wo) < 0.0, -n_geo, n_geo)
-        out = {"n": n_facing, "n_facing": n_facing}
-        face, u, v = surf["face"], surf["u"], surf["v"]
-        active = surf.get("hit", mi.Bool(True))
+        face, u, v = surf.face, surf.u, surf.v
+        uv = lod = None
         if self.textures is not None:
             w = 1.0 - u - v
-            uv = [dr.gather(mi.Point2f, t, face, active) for t in self.face_uv]
-            out["uv"] = w * uv[0] + u * uv[1] + v * uv[2]
+            corner_uv = [dr.gather(mi.Point2f, t, face, active) for t in self.face_uv]
+            uv = w * corner_uv[0] + u * corner_uv[1] + v * corner_uv[2]
             if footprint_m is not None:
                 # The footprint ellipse's axes are f and f / cos(view): their geometric
                 # mean, in texture units (uv per metre of the triangle).
                 scale = dr.gather(mi.Float, self.face_uv_per_m, face, active)
                 cos_view = dr.maximum(dr.abs(dr.dot(n_geo, wo)), _MIN_FOOTPRINT_COSINE)
-                out["lod"] = dr.log2(footprint_m * scale * dr.rsqrt(cos_view))
+                lod = dr.log2(footprint_m * scale * dr.rsqrt(cos_view))
         if not self.shading_normals:
-            return out
+            return ShadingGeometry(n_facing, n_facing, uv, lod)
         if self.smooth:
             w = 1.0 - u - v
             corners = [dr.gather(mi.Vector3f, t, face, active) for t in self.face_n_corner]
@@ -194,25 +250,25 @@ class TargetGeometry:
         # triangles against their normals); the view decides which side is seen.
         flip = dr.dot(n, n_facing) < 0.0
         if self.normal_mapped:
-            n = self._normal_mapped(surf, n, out, active)
+            n = self._normal_mapped(surf, n, uv, lod, active)
         n = dr.select(flip, -n, n)
         # Keep the viewer above the shading horizon (adaptation).
         cos_view = dr.dot(n, wo)
         bent = dr.normalize(n + (VIEW_COSINE_MIN - cos_view) * wo)
-        out["n"] = dr.select(cos_view < VIEW_COSINE_MIN, bent, n)
-        return out
+        return ShadingGeometry(dr.select(cos_view < VIEW_COSINE_MIN, bent, n), n_facing, uv, lod)
 
-    def _normal_mapped(self, surf: dict, n, out: dict, active):
-        """n tilted by the part's normal map (tangent space: +x along u, +y along v)."""
+    def _normal_mapped(self, surf: SurfacePoint, n, uv, lod, active):
+        """n tilted by the part's normal map (tangent space: +x along u, +y along v), at
+        texture coordinates ``uv`` and mip level ``lod``."""
         mi, dr = self._mi, self._dr
         tex = self.textures
-        texture = tex.slot("normal", surf["part"], active)
+        texture = tex.slot("normal", surf.part, active)
         mapped = active & (texture >= 0)
-        face, uv, lod = surf["face"], out["uv"], out.get("lod")
+        face = surf.face
 
         def tilt():
             value = tex.sample(texture, uv, mapped, lod)
-            scale = tex.normal_scale(surf["part"], mapped)
+            scale = tex.normal_scale(surf.part, mapped)
             dp_du = dr.gather(mi.Vector3f, self.face_dp_du, face, mapped)
             dp_dv = dr.gather(mi.Vector3f, self.face_dp_dv, face, mapped)
             t = dr.normalize(dp_du - n * dr.dot(n, dp_du))
@@ -228,10 +284,10 @@ class TargetGeometry:
 
         return guarded(mapped, tilt, lambda: mi.Vector3f(n))
 
-    def facing_normal(self, surf: dict, towards):
+    def facing_normal(self, surf: SurfacePoint, towards):
         """The surface's unit normal flipped to the side of ``towards`` (surfaces are
         two-sided: a ray sees the side it arrives on)."""
-        n = surf["n_geo"]
+        n = surf.normal_geo
         return self._dr.select(self._dr.dot(n, towards) < 0.0, -n, n)
 
     def face_side(self, face, n_geo, towards):
@@ -239,12 +295,11 @@ class TargetGeometry:
         ``towards``, ``face + faces`` where the surface is seen from its back."""
         return self._dr.select(self._dr.dot(n_geo, towards) < 0.0, face + self.face_count, face)
 
-    def intersect(self, origin, direction, active, opacity_sample, coherent=False) -> dict:
+    def intersect(self, origin, direction, active, opacity_sample, coherent=False) -> RayHit:
         """First surface along a ray that the ray does not pass through.
 
         opacity_sample(layer) -> Float in [0, 1): a surface of opacity alpha stops the ray
-        where the sample is < alpha. Returns hit, t (from ``origin``) and the surface
-        (see ``surface_at``).
+        where the sample is < alpha.
         """
         mi, dr = self._mi, self._dr
         pi = self.scene.ray_intersect_preliminary(
@@ -254,29 +309,28 @@ class TargetGeometry:
         surf = self.surface_at(pi.prim_index, pi.prim_uv.x, pi.prim_uv.y, hit)
         t = dr.select(hit, pi.t, 0.0)
         if not self.transparent:
-            return {"hit": hit, "t": t, **surf}
-        stopped = hit & (opacity_sample(0) < dr.gather(mi.Float, self.part_opacity, surf["part"]))
+            return RayHit(hit, t, surf)
+        stopped = hit & (opacity_sample(0) < dr.gather(mi.Float, self.part_opacity, surf.part))
         moving = hit & ~stopped
         for layer in range(1, self.max_transparent_layers):
             # Continue just past the surface the ray went through.
-            step_origin = surf["p"] + direction * self.ray_offset_m
+            step_origin = surf.point_m + direction * self.ray_offset_m
             pi = self.scene.ray_intersect_preliminary(
                 mi.Ray3f(step_origin, direction), coherent=coherent, active=moving
             )
             again = moving & pi.is_valid()
             nxt = self.surface_at(pi.prim_index, pi.prim_uv.x, pi.prim_uv.y, again)
             t_next = dr.dot(step_origin - origin, direction) + pi.t
-            for key in nxt:
-                surf[key] = dr.select(again, nxt[key], surf[key])
+            surf = nxt.where(again, surf)
             t = dr.select(again, t_next, t)
-            opaque = opacity_sample(layer) < dr.gather(mi.Float, self.part_opacity, nxt["part"])
+            opaque = opacity_sample(layer) < dr.gather(mi.Float, self.part_opacity, nxt.part)
             stopped |= again & opaque
             moving = again & ~opaque
-        return {"hit": stopped, "t": dr.select(stopped, t, 0.0), **surf}
+        return RayHit(stopped, dr.select(stopped, t, 0.0), surf)
 
     def visible(self, origin, direction, active, rng):
         """Whether a ray from ``origin`` escapes the target (shadow test), Bool."""
         if not self.transparent:
             return ~self.scene.ray_test(self._mi.Ray3f(origin, direction), active)
         blocked = self.intersect(origin, direction, active, lambda layer: rng.next_float32())
-        return ~blocked["hit"]
+        return ~blocked.hit

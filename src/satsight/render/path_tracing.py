@@ -1,0 +1,242 @@
+"""Light paths of the renderer: from a camera ray's surface over ``bounces`` further
+surfaces, with the light each vertex picks up (paper Eq. 21).
+
+At each vertex: the Sun by one shadow ray (``sun="delta"``), the unshadowed environment's
+diffuse part from its SH convolution (``environment="unshadowed"``), the Earth and the
+Moon by one body-light sample (``environment="sampled"``), and one BRDF-sampled ray that
+picks up the environment where it leaves the target and continues the path where it meets
+the target again (throughput f cos / pdf). Body-light and BRDF samples of the bodies are
+weighted by multiple importance sampling (power heuristic).
+"""
+
+from __future__ import annotations
+
+from satsight.render.body_light import BodyLight
+from satsight.render.environment_light import EnvironmentLight
+from satsight.render.frame_values import FrameValues
+from satsight.render.path_records import BounceRay, CameraRayHit, PathStart, PathVertex
+from satsight.render.path_streams import (
+    PathStreams,
+    bounce_segment,
+    light_segment,
+    shading_segment,
+)
+from satsight.render.settings import RenderSettings
+from satsight.render.surface import SurfaceModel
+from satsight.render.target_geometry import TargetGeometry
+
+
+class PathTracer:
+    """The light paths of one renderer.
+
+    surface: the parts' reflection models at the first vertex; surface_indirect: those at
+    vertices reached by a bounce (roughness floored, path regularisation).
+    """
+
+    def __init__(
+        self,
+        settings: RenderSettings,
+        geometry: TargetGeometry,
+        surface: SurfaceModel,
+        surface_indirect: SurfaceModel,
+        body_light: BodyLight,
+        environment: EnvironmentLight,
+        streams: PathStreams,
+    ) -> None:
+        import drjit as dr
+        import mitsuba as mi
+
+        self._mi, self._dr = mi, dr
+        self.settings = settings
+        self._geometry = geometry
+        self._surface = surface
+        self._surface_indirect = surface_indirect
+        self._body_light = body_light
+        self._environment = environment
+        self._streams = streams
+
+    def trace(self, frame: FrameValues, start: CameraRayHit, path: PathStart, lane_sum) -> None:
+        """Follow the light paths ``path`` that start at the camera rays' surfaces
+        ``start`` and add their radiance to ``lane_sum`` (entry ``path.lane``; Color3f per
+        lane, or a flat Float of three values per lane).
+
+        One kernel per path vertex (a wavefront). A vertex's bounce ray is first only
+        tested for occlusion (cheaper than finding the hit); the paths whose ray meets the
+        target again are listed (dr.compress) and the next kernel, on those lanes alone,
+        traces the ray to its hit and shades it. So a vertex costs only the paths that
+        reach it. The last kernel is left unevaluated for the caller to launch.
+        """
+        mi, dr = self._mi, self._dr
+        pixel, pass_index, ld = path.pixel, path.pass_index, path.low_discrepancy
+        lane = path.lane
+        vertex = PathVertex(
+            point_m=start.surface.point_m,
+            normal=start.shading.normal,
+            normal_geo=start.shading.normal_facing,
+            uv=start.shading.uv,
+            mip_level=start.shading.mip_level,
+            part=start.surface.part,
+            wo=-start.direction_body,
+            face_side=self._geometry.face_side(
+                start.surface.face, start.surface.normal_geo, -start.direction_body
+            ),
+            throughput=mi.Color3f(1.0),
+        )
+        active = start.hit
+        for depth in range(self.settings.bounces + 1):
+
+            def rng(segment: int, pixel=pixel, pass_index=pass_index):
+                return self._streams.streams(frame, pixel, pass_index, segment)[0]
+
+            value, ray = self._shade_vertex(frame, vertex, active, depth, rng, ld)
+            dr.scatter_add(lane_sum, value, lane, active, mode=dr.ReduceMode.NoConflicts)
+            if ray is None:
+                return
+            hit = ray.meets_target
+            dr.eval(lane_sum, hit, ray.origin_m, ray.direction, ray.throughput)
+            selected = dr.compress(hit)
+            if dr.width(selected) == 0:
+                return
+            same = lane is pixel
+            pixel = dr.gather(mi.UInt32, pixel, selected)
+            lane = pixel if same else dr.gather(mi.UInt32, lane, selected)
+            if dr.width(pass_index) > 1:
+                pass_index = dr.gather(mi.UInt32, pass_index, selected)
+            origin, direction, throughput = (
+                dr.gather(type(v), v, selected)
+                for v in (ray.origin_m, ray.direction, ray.throughput)
+            )
+            # The same stream as the occlusion test, so a partly transparent surface lets
+            # the ray through (or not) exactly as it did there.
+            opacity, ld = self._streams.streams(frame, pixel, pass_index, bounce_segment(depth))
+            found = self._geometry.intersect(
+                origin,
+                direction,
+                mi.Bool(True),
+                lambda layer, opacity=opacity: opacity.next_float32(),
+            )
+            wo = -direction
+            ng = found.surface.normal_geo
+            shade = self._geometry.shading(found.surface, found.hit, wo)
+            vertex = PathVertex(
+                point_m=found.surface.point_m,
+                normal=shade.normal,
+                normal_geo=shade.normal_facing,
+                uv=shade.uv,
+                mip_level=shade.mip_level,
+                part=found.surface.part,
+                wo=wo,
+                face_side=self._geometry.face_side(found.surface.face, ng, wo),
+                throughput=throughput,
+            )
+            # Occlusion test and hit search agree but for rounding at edges; a path whose
+            # ray finds no surface after all ends there.
+            active = found.hit
+
+    def _body_light_sample(
+        self, frame, surface, params, shading, origin, wo_local, active, depth: int, rng, ld
+    ):
+        """Light from the Earth and the Moon by one direction sampled in a body's cone,
+        shadowed by the target, weighted against BRDF sampling (power heuristic)."""
+        mi, dr = self._mi, self._dr
+        bodies = frame.bodies
+        base = self._streams.light_dims + 3 * depth
+        wi, pdf_light = self._body_light.sample(
+            bodies, origin, ld(base), ld(base + 1), ld(base + 2)
+        )
+        wi_local = shading.to_local(wi)
+        ok = active & (wi_local.z > 0.0) & (pdf_light > 0.0)
+        sky, _ = self._body_light.radiance(bodies, origin, wi, ok)
+        ok &= dr.max(sky) > 0.0
+        ok &= self._geometry.visible(origin, wi, ok, rng(light_segment(depth)))
+        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+        pdf_brdf = surface.pdf(params, wi_local, wo_local)
+        mis = dr.square(pdf_light) / dr.maximum(dr.square(pdf_light) + dr.square(pdf_brdf), 1e-30)
+        weight = wi_local.z * mis / dr.maximum(pdf_light, 1e-30)
+        return dr.select(ok, (f_diffuse + f_specular) * sky * weight, mi.Color3f(0.0))
+
+    def _shade_vertex(
+        self, frame: FrameValues, vertex: PathVertex, active, depth: int, rng, ld
+    ) -> tuple[object, BounceRay | None]:
+        """Radiance a path picks up at one surface vertex, and the ray it continues on.
+
+        rng(segment): the path's PCG32 of a stream segment; ld(dim): its low-discrepancy
+        sample. Returns (radiance Color3f, ray) with ray None at the path's last vertex.
+        """
+        mi, dr = self._mi, self._dr
+        s = self.settings
+        env_on = s.environment != "off" or s.sun == "sh"
+        surface = self._surface if depth == 0 else self._surface_indirect
+        p, n, part, wo = vertex.point_m, vertex.normal, vertex.part, vertex.wo
+        throughput = vertex.throughput
+        shading = mi.Frame3f(n)
+        wo_local = shading.to_local(wo)
+        origin = p + vertex.normal_geo * frame.ray_offset_m  # off the geometric surface
+        params = surface.at(part, active, vertex, shading)  # gathered once per surface hit
+        radiance = mi.Color3f(0.0)
+        if s.sun == "delta":
+            wi = frame.sun_direction_body
+            wi_local = shading.to_local(wi)
+            lit = active & (wi_local.z > 0.0) & (frame.sun_irradiance_w_m2 > 0.0)
+            if self._geometry.shading_normals:  # no light from below the geometric surface
+                lit &= dr.dot(wi, vertex.normal_geo) > 0.0
+            lit &= self._geometry.visible(origin, wi, lit, rng(shading_segment(depth)))
+            f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+            irradiance = frame.sun_irradiance_w_m2 * wi_local.z
+            radiance += dr.select(lit, (f_diffuse + f_specular) * irradiance, 0.0)
+        if s.environment == "unshadowed":
+            table = frame.diffuse_env_table
+            if table is None:  # shading normals: the SH sum at each hit's normal
+                diffuse_env = self._environment.diffuse(frame.env_sh_radiance_w_m2_sr, n, part)
+            else:
+                diffuse_env = dr.gather(type(table), table, vertex.face_side, active)
+            kd = surface.diffuse_coefficient(params, wo_local)
+            radiance += dr.select(active, kd * diffuse_env, 0.0)
+        if frame.bodies_light_target:
+            radiance += self._body_light_sample(
+                frame, surface, params, shading, origin, wo_local, active, depth, rng, ld
+            )
+        last = depth == s.bounces
+        if last and not env_on:
+            return throughput * radiance, None
+        base = 2 + 3 * depth
+        u2 = mi.Point2f(ld(base + 1), ld(base + 2))
+        wi_local, pdf = surface.sample(params, wo_local, ld(base), u2)
+        valid = active & (pdf > 0.0) & (wi_local.z > 0.0)
+        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+        cos_over_pdf = wi_local.z / dr.maximum(pdf, 1e-30)
+        weight = dr.select(valid, (f_diffuse + f_specular) * cos_over_pdf, 0.0)
+        wi = shading.to_world(wi_local)
+        if last and s.environment == "unshadowed":
+            # No visibility ray for the environment: the path's last vertex sees it
+            # unshadowed, as the diffuse part does.
+            escaped = valid
+        else:
+            bounce_rng = rng(bounce_segment(depth))
+            escaped = valid & self._geometry.visible(origin, wi, valid, bounce_rng)
+        if env_on:
+            env_weight = weight
+            if s.environment == "unshadowed":
+                # The diffuse part came from the SH convolution above: only the specular
+                # part is taken from the sampled ray.
+                env_weight = f_specular * cos_over_pdf
+            if not frame.env_is_zero:
+                sky = self._environment.radiance(frame.env_sh_radiance_w_m2_sr, wi)
+                radiance += dr.select(escaped, env_weight * sky, 0.0)
+            if frame.bodies_light_target:
+                # The BRDF sample's share of the bodies' light (multiple importance
+                # sampling with the body-light sample, power heuristic).
+                bodies = frame.bodies
+                sky, _ = self._body_light.radiance(bodies, origin, wi, escaped)
+                pdf_light = self._body_light.light_pdf(bodies, origin, wi)
+                mis = dr.square(pdf) / dr.maximum(dr.square(pdf) + dr.square(pdf_light), 1e-30)
+                radiance += dr.select(escaped, env_weight * sky * mis, 0.0)
+        radiance = throughput * radiance
+        if last:
+            return radiance, None
+        return radiance, BounceRay(
+            meets_target=valid & ~escaped,
+            origin_m=origin,
+            direction=wi,
+            throughput=throughput * weight,
+        )
