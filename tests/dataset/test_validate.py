@@ -24,7 +24,8 @@ from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import record_line, sorted_journal_frames
 from satsight.dataset.manifest import json_bytes, labels_lines
 from satsight.dataset.problems import MAX_KEPT_PROBLEMS
-from satsight.dataset.validate import ValidationReport, validate_dataset
+from satsight.dataset.validate import validate_dataset
+from satsight.dataset.validation_report import ValidationReport
 from satsight.errors import SatsightError
 from satsight.generation import generate_dataset
 from synthetic_datasets import LARGE_FRAME_COUNT, held_records_bytes, write_synthetic_dataset

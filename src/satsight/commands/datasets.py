@@ -197,7 +197,8 @@ def merge(shards: tuple[Path, ...], out_dir: Path, move: bool) -> None:
 )
 def validate(dataset: Path, hashes: bool, allow_incomplete: bool) -> None:
     """Check DATASET's files, checksums and labels; exit status 1 when problems are found."""
-    from satsight.dataset.validate import omitted_line, summary_table, validate_dataset
+    from satsight.dataset.validate import validate_dataset
+    from satsight.dataset.validation_report import omitted_line, summary_table
 
     # Transient: the bar shows while frames are checked, then gives way to the report.
     with Progress(*progress_bar().columns, console=console, transient=True) as progress:
