@@ -13,9 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from matplotlib.colors import to_rgba
 from scipy.ndimage import binary_dilation, binary_erosion, maximum_filter
 
 from cli_runner import run_satsight
+from figure_checks import figure_pixels, has_colour
 from satsight.camera.pinhole import PinholeCamera
 from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
@@ -127,8 +129,8 @@ def test_labels_top_level(labels) -> None:
 
 
 def test_model_contact_sheet_and_scenario_copy(demo_dir: Path, labels) -> None:
-    sheet = read_png(demo_dir / "contact_sheet.png")
-    assert sheet.ndim == 3 and sheet.shape[2] in (3, 4)
+    # The six frames as thumbnails, three to a row, 4.2 x 4.8 inches each at 100 dpi.
+    figure_pixels(demo_dir / "contact_sheet.png", (3 * 420, 2 * 480))
     assert (demo_dir / "model" / "target.obj").is_file()
     assert (demo_dir / "model" / "target.mtl").is_file()
     mesh = load_mesh(demo_dir / "model" / "target.obj")
@@ -439,7 +441,11 @@ def test_camera_command_reports_limiting_magnitudes_and_plots_the_mtf(tmp_path: 
     assert np.all(steps > 2.3) and np.all(steps <= 2.5 + 1e-9)
     reference = report["reference_exposure"]
     assert 1e-4 < reference["exposure_time_s"] < 1e-2
-    assert read_png(out / "system_mtf.png").ndim == 3
+    # 7 x 4.5 inches at 100 dpi: the diffraction, pixel and jitter curves in the colour
+    # cycle's first three colours, the system MTF in black.
+    figure = figure_pixels(out / "system_mtf.png", (700, 450))
+    for colour in ("C0", "C1", "C2", "k"):
+        assert has_colour(figure, to_rgba(colour)), colour
 
 
 def test_camera_command_rejects_a_bad_scenario(tmp_path: Path) -> None:

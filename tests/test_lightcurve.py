@@ -20,8 +20,10 @@ import numpy as np
 import pytest
 import trimesh
 import yaml
+from matplotlib.colors import to_rgba
 
 from cli_runner import run_satsight
+from figure_checks import figure_pixels, has_colour
 from satsight.config.scenario import parse_scenario
 from satsight.lightcurve import run_lightcurve
 
@@ -97,6 +99,8 @@ def test_lightcurve_command_writes_csv_and_plot(tmp_path: Path) -> None:
         rows = list(csv.DictReader(f))
     assert len(rows) == len(ELEVATIONS_DEG)
     assert all(float(r["target_irradiance_w_m2"]) > 0 for r in rows)
-    assert (tmp_path / "lc" / "lightcurve.png").stat().st_size > 10_000
+    # Two panels, 9 x 6 inches at 110 dpi: magnitude in C0 blue, phase angle in orange.
+    figure = figure_pixels(tmp_path / "lc" / "lightcurve.png", (9 * 110, 6 * 110))
+    assert has_colour(figure, to_rgba("C0")) and has_colour(figure, to_rgba("tab:orange"))
     bad = run_satsight("lightcurve", str(config), "--size-px", "8", cwd=tmp_path)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
