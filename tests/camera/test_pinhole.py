@@ -247,7 +247,12 @@ def test_projection_is_perspective_not_mirrored() -> None:
 def test_invalid_parameters_raise(kwargs: dict) -> None:
     args = {"focal_length_m": 3.0, "pixel_pitch_m": 15e-6, "width_px": 16, "height_px": 8}
     args.update(kwargs)
-    with pytest.raises(SatsightError):
+    (name,) = kwargs
+    message = {
+        "focal_length_m": "focal length must be positive",
+        "pixel_pitch_m": "pixel pitch must be positive",
+    }.get(name, "image size must be whole numbers of pixels, at least 1 x 1")
+    with pytest.raises(SatsightError, match=message):
         PinholeCamera(**args)
 
 
@@ -277,5 +282,5 @@ def test_with_size_recentres_the_principal_point() -> None:
     assert small.ifov_rad == HIGH_RES.ifov_rad  # same optics, same GSD
     # Fewer pixels of the same size: the field of view shrinks accordingly.
     assert small.fov_x_rad == pytest.approx(_fov_rad(512, 15e-6, 3.0), rel=REL)
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match="at least 1 x 1; got 0 x 10"):
         HIGH_RES.with_size(0, 10)

@@ -423,7 +423,7 @@ def test_zero_quaternion_raises(q: np.ndarray) -> None:
         canonical_quaternion(q)
     with pytest.raises(SatsightError, match="zero length"):
         matrix_from_quaternion(q)
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match="zero length"):
         canonical_quaternion(np.stack([IDENTITY, q]))  # one bad row spoils the batch
 
 

@@ -124,10 +124,15 @@ def test_count_index_and_degree_agree() -> None:
 
 
 @pytest.mark.parametrize(
-    "call", [lambda: sh_index(2, 3), lambda: sh_count(-1), lambda: sh_l_max(5)]
+    ("call", "message"),
+    [
+        (lambda: sh_index(2, 3), r"\|m\| <= l, got l=2, m=3"),
+        (lambda: sh_count(-1), "l_max must be an integer >= 0, got -1"),
+        (lambda: sh_l_max(5), r"\(l_max \+ 1\)\^2 coefficients .* got 5"),
+    ],
 )
-def test_bad_indices_raise(call) -> None:
-    with pytest.raises(SatsightError):
+def test_bad_indices_raise(call, message) -> None:
+    with pytest.raises(SatsightError, match=message):
         call()
 
 
@@ -193,10 +198,16 @@ def test_directions_are_normalised_and_batch_shape_kept() -> None:
 
 
 @pytest.mark.parametrize(
-    "bad", [np.zeros(3), np.array([1.0, np.nan, 0.0]), np.ones((4, 2)), np.float64(1.0)]
+    ("bad", "message"),
+    [
+        (np.zeros(3), "finite, non-zero 3-vectors"),
+        (np.array([1.0, np.nan, 0.0]), "finite, non-zero 3-vectors"),
+        (np.ones((4, 2)), r"shape \(\.\.\., 3\), got \(4, 2\)"),
+        (np.float64(1.0), r"shape \(\.\.\., 3\), got \(\)"),
+    ],
 )
-def test_bad_directions_raise(bad) -> None:
-    with pytest.raises(SatsightError):
+def test_bad_directions_raise(bad, message) -> None:
+    with pytest.raises(SatsightError, match=message):
         sh_eval(bad, 2)
 
 
@@ -254,7 +265,7 @@ def test_band_limited_function_projects_back_exactly(
 
 def test_project_samples_rejects_mismatched_shapes() -> None:
     d, w = quadrature_for(2)
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match=r"project_samples needs directions \(N, 3\)"):
         project_samples(d, np.ones(len(w) - 1), w, 2)
 
 
@@ -343,7 +354,7 @@ def test_convolution_with_a_smooth_kernel_matches_direct_integration(seed: int) 
 
 
 def test_convolve_rejects_too_few_factors() -> None:
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match=r"kernel_coeffs must have shape \(>= 5,\)"):
         convolve(np.ones(25), np.ones(3))
 
 
@@ -547,7 +558,7 @@ def test_rotation_about_z_turns_each_order_by_m_gamma() -> None:
 
 
 def test_rotation_matrix_rejects_non_orthogonal_input() -> None:
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match="orthogonal 3x3 matrix"):
         rotation_matrix(np.diag([1.0, 2.0, 1.0]), 2)
 
 
