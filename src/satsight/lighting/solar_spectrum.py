@@ -41,6 +41,7 @@ import scipy.constants as const
 
 from satsight.constants import AU_M, DEFAULT_BAND_NM
 from satsight.errors import SatsightError
+from satsight.lighting.blackbody import planck_exitance_w_m2_per_m
 
 Spectrum = Literal["astm_e490", "blackbody_5778k"]
 SPECTRA: tuple[str, ...] = ("astm_e490", "blackbody_5778k")
@@ -61,11 +62,6 @@ E490_ROWS = 1697
 _E490_COLUMNS = "wavelength_nm,spectral_irradiance_w_m2_nm"
 
 _NM = 1e-9  # metres per nanometre
-
-# Planck's law: first and second radiation constants for spectral exitance,
-# c1 = 2 pi h c^2 (W m^2) and c2 = h c / k (m K); CODATA 2018 exact SI values.
-_C1_W_M2 = 2.0 * math.pi * const.h * const.c**2
-_C2_M_K = const.h * const.c / const.k
 
 
 def _read_verified(path: Traversable | Path) -> str:
@@ -142,18 +138,6 @@ def solar_constant_w_m2() -> float:
     return _integrate_piecewise_linear(
         wavelength_m, irradiance, float(wavelength_m[0]), float(wavelength_m[-1])
     )
-
-
-def planck_exitance_w_m2_per_m(wavelength_m: np.ndarray, temperature_k: float) -> np.ndarray:
-    """Spectral exitance ``pi B_lambda(T)`` of a black body, W m^-2 m^-1.
-
-    ``M(lambda) = c1 / (lambda^5 (exp(c2 / (lambda T)) - 1))`` with ``c1 = 2 pi h c^2``
-    and ``c2 = h c / k`` (Planck's law; CODATA exact constants). Its integral over all
-    wavelengths is ``sigma T^4``. ``wavelength_m``: any shape, m.
-    """
-    lam = np.asarray(wavelength_m, dtype=np.float64)
-    with np.errstate(over="ignore"):  # far into the Wien tail exp overflows: exitance 0
-        return _C1_W_M2 / (lam**5 * np.expm1(_C2_M_K / (lam * temperature_k)))
 
 
 def _planck_band_w_m2(lo_m: float, hi_m: float, temperature_k: float) -> float:

@@ -289,7 +289,7 @@ def render_sampling_otf(
     """Expected response S(f) of the renderer's sub-pixel sampling along one pixel axis.
 
     A rendered pixel is the mean of point samples of the radiance at sub-pixel positions
-    (``satsight.render.renderer``): with samples_per_pixel = 1, the centres of the s x s
+    (``satsight.render.camera_rays``): with samples_per_pixel = 1, the centres of the s x s
     strata (s = supersampling), offsets (j + 1/2 - s/2) p / s per axis; with
     samples_per_pixel > 1, positions spread uniformly over each stratum (a Kronecker
     sequence with a uniform random shift per pixel), which together cover the pixel

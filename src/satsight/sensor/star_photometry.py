@@ -18,8 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from satsight.constants import BOLTZMANN_J_K, PLANCK_J_S, SPEED_OF_LIGHT_M_S
+from satsight.constants import PLANCK_J_S, SPEED_OF_LIGHT_M_S
 from satsight.errors import SatsightError
+from satsight.lighting.blackbody import planck_shape_per_m5
 from satsight.lighting.solar_spectrum import check_band_nm
 
 GV_CITATION = "Riello et al. 2021, A&A 649, A3, Table C.2 (G - V from BP - RP)"
@@ -107,12 +108,6 @@ def fit_colour_relations(
 # --- photon flux -----------------------------------------------------------------------------
 
 
-def _planck_shape(wavelength_m: np.ndarray, temperature_k: np.ndarray) -> np.ndarray:
-    """B_lambda(T) / (2 h c^2), m^-5: lambda^-5 / (exp(h c / (lambda k T)) - 1)."""
-    x = PLANCK_J_S * SPEED_OF_LIGHT_M_S / (wavelength_m * BOLTZMANN_J_K * temperature_k)
-    return wavelength_m**-5 / np.expm1(x)
-
-
 def _check_stars(v_mag: np.ndarray, temperature_k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     v = np.atleast_1d(np.asarray(v_mag, dtype=np.float64))
     t = np.atleast_1d(np.asarray(temperature_k, dtype=np.float64))
@@ -156,8 +151,8 @@ def star_photon_flux_m2_s(
     lam_nm = ((edges[:-1] + half)[:, None] + half[:, None] * x[None, :]).ravel()
     weights_nm = (half[:, None] * w[None, :]).ravel()
     lam_m = lam_nm * 1e-9
-    shape = _planck_shape(lam_m[None, :], t[:, None])  # (N, nodes)
-    ref = _planck_shape(np.array([V_EFFECTIVE_WAVELENGTH_NM * 1e-9]), t)  # (N,)
+    shape = planck_shape_per_m5(lam_m[None, :], t[:, None])  # (N, nodes)
+    ref = planck_shape_per_m5(np.array([V_EFFECTIVE_WAVELENGTH_NM * 1e-9]), t)  # (N,)
     f_v = V_ZERO_POINT_W_M2_NM * 10.0 ** (-0.4 * v)  # W m^-2 nm^-1 at 545 nm
     photons_per_nm = (shape / ref[:, None]) * (lam_m / (PLANCK_J_S * SPEED_OF_LIGHT_M_S))[None, :]
     return f_v * (photons_per_nm @ weights_nm)

@@ -9,9 +9,9 @@ import functools
 import math
 
 import numpy as np
-import scipy.constants as const
 
 from satsight.errors import SatsightError
+from satsight.lighting.blackbody import planck_shape_per_m5
 from satsight.lighting.solar_spectrum import check_band_nm
 from satsight.sensor.mtf import band_wavelengths_m, defocus_mtf, diffraction_mtf
 from satsight.sensor.optics import Optics
@@ -61,8 +61,7 @@ def _weighted_otf(
     f = np.fft.fftfreq(size * s, d=pixel_pitch_m / s)
     rho = np.hypot(f[:, None], f[None, :])
     lam = band_wavelengths_m(band_nm, N_PSF_WAVELENGTHS)
-    x = const.h * const.c / (lam * const.k * temperature_k)
-    weights = lam**-4 / np.expm1(x)
+    weights = lam * planck_shape_per_m5(lam, temperature_k)  # photons: lambda B_lambda
     weights /= weights.sum()
     otf = np.zeros_like(rho)
     for lk, wk in zip(lam, weights, strict=True):
