@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-ONE_MM = 1e-3
-MICRO_PX = 1e-6
-
 
 def plate_parts(size_m: float = 2.0, z_m: float = 0.0):
     """A square plate of side size_m in the plane z = z_m, normal +z (two triangles)."""

@@ -1,4 +1,9 @@
-"""Shared test fixtures and tolerances (named in units)."""
+"""Fixtures shared by every test folder: the Mitsuba CPU variant, started once per session.
+
+Named tolerances (ONE_MM, ARCSEC_RAD, ...) are module constants in ``tolerances.py``; small
+shared builders and helpers are modules beside this file (``builders.py``, ``cli_runner.py``,
+...), imported by name.
+"""
 
 from __future__ import annotations
 

@@ -18,12 +18,11 @@ from scipy.spatial.transform import Rotation
 import satsight
 from satsight.config.scenario import RenderConfig
 from satsight.dataset.reader import open_dataset as open_reader
+from tolerances import ONE_MM, ONE_UM
 
 WIDTH_PX, HEIGHT_PX, CROP_PX = 80, 64, 32
 DISTANCES_KM = (2.0, 3.0, 4.5)
 BOX_EXTENTS_M = (2.0, 1.0, 0.6)
-ONE_MM = 1e-3
-ONE_UM = 1e-6
 
 
 def scenario_dict(mesh_path: Path | str) -> dict:

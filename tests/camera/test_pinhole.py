@@ -19,7 +19,6 @@ from satsight.errors import SatsightError
 
 ATOL_PX = 1e-9  # pixel positions from float64 arithmetic
 REL = 1e-12  # closed forms that the code evaluates the same way up to rounding
-ONE_MM = 1e-3
 FIFTEEN_UM = 15e-6
 WIDTH_PX, HEIGHT_PX = 4096, 4112
 PROPERTY = settings(max_examples=50, deadline=None)

@@ -12,16 +12,13 @@ is off by. No network: IERS auto-download is off and no UTC conversion happens i
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from satsight.ephemeris import sun_moon
 from satsight.ephemeris.time import parse_epoch_utc, skyfield_data_dir
+from tolerances import ARCSEC_RAD, MAS_RAD
 
-ARCSEC = math.pi / (180.0 * 3600.0)
-MAS = ARCSEC / 1000.0
 ONE_M = 1.0
 KM = 1e3
 
@@ -77,7 +74,7 @@ def test_geometric_position_matches_astropy_on_the_same_kernel(astropy_de421, bo
     ours = _ours_m(position, EPOCHS)
     oracle = _oracle_geometric_m(astropy_de421, body, EPOCHS)
     assert np.all(np.linalg.norm(ours - oracle, axis=1) < ONE_M)
-    assert np.all(_angle_rad(ours, oracle) < MAS)
+    assert np.all(_angle_rad(ours, oracle) < MAS_RAD)
 
 
 def test_moon_is_not_the_light_time_only_position(astropy_de421):
@@ -91,4 +88,4 @@ def test_moon_is_not_the_light_time_only_position(astropy_de421):
     assert np.all((offset_km > 30.0) & (offset_km < 45.0)), offset_km
     # ... and the geometric one is what astropy gives.
     oracle = _oracle_geometric_m(astropy_de421, "moon", EPOCHS)
-    assert np.all(_angle_rad(ours, oracle) < ARCSEC)
+    assert np.all(_angle_rad(ours, oracle) < ARCSEC_RAD)

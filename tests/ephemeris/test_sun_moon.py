@@ -19,9 +19,8 @@ import pytest
 
 from satsight.ephemeris import sun_moon, time
 from satsight.errors import SatsightError
+from tolerances import ARCSEC_RAD, MAS_RAD
 
-ARCSEC_PER_RAD = 180.0 / math.pi * 3600.0
-MAS_TO_RAD = 1.0 / (ARCSEC_PER_RAD * 1000.0)
 C_M_S = 299_792_458.0
 
 # Epochs spread over 2000-2050 (UTC), inside DE421's span.
@@ -87,7 +86,7 @@ def _oracle_geometric_m(astropy_offline, body, ts):
 
 def _angle_arcsec(a, b):
     cross = np.linalg.norm(np.cross(a, b), axis=-1)
-    return np.arctan2(cross, np.sum(a * b, axis=-1)) * ARCSEC_PER_RAD
+    return np.arctan2(cross, np.sum(a * b, axis=-1)) / ARCSEC_RAD
 
 
 def _stack(fn, ts):
@@ -304,7 +303,7 @@ def test_frame_bias_is_a_23_mas_proper_rotation():
     np.testing.assert_allclose(b @ b.T, np.eye(3), rtol=0.0, atol=1e-15)
     assert np.linalg.det(b) == pytest.approx(1.0, abs=1e-15)
     axial = 0.5 * np.array([b[1, 2] - b[2, 1], b[2, 0] - b[0, 2], b[0, 1] - b[1, 0]])
-    angle_mas = np.linalg.norm(axial) / MAS_TO_RAD
+    angle_mas = np.linalg.norm(axial) / MAS_RAD
     assert angle_mas == pytest.approx(math.sqrt(14.6**2 + 16.6170**2 + 6.8192**2), rel=1e-6)
     assert 23.0 < angle_mas < 23.3
     np.testing.assert_allclose(sun_moon.gcrs_from_eme2000_matrix(), b.T, rtol=0, atol=0)
@@ -314,7 +313,7 @@ def test_frame_bias_puts_the_j2000_pole_at_xi0_eta0():
     # IERS Conventions 2010, Ch. 5: xi0, eta0 are the GCRS coordinates of the J2000 mean pole.
     pole = sun_moon.gcrs_from_eme2000([0.0, 0.0, 1.0])
     # Exactly to first order; the product of rotations adds ~1e-6 mas of second order.
-    np.testing.assert_allclose(pole[:2] / MAS_TO_RAD, [-16.6170, -6.8192], rtol=0.0, atol=1e-5)
+    np.testing.assert_allclose(pole[:2] / MAS_RAD, [-16.6170, -6.8192], rtol=0.0, atol=1e-5)
 
 
 def test_frame_bias_matches_erfa_and_skyfield():

@@ -30,9 +30,9 @@ from satsight.ephemeris.tle import (
     tle_checksum,
 )
 from satsight.errors import SatsightError
+from tolerances import ONE_MM_S
 
 ONE_M = 1.0
-ONE_MM_S = 1e-3
 
 VANGUARD_1 = "1 00005U 58002B   00179.78495062  .00000023  00000-0  28098-4 0  4753"
 VANGUARD_2 = "2 00005  34.2682 348.7242 1859667 331.7664  19.3264 10.82419157413667"

@@ -45,6 +45,7 @@ from satsight.ephemeris.visibility import (
     sun_boresight_angle_rad,
 )
 from satsight.errors import SatsightError
+from tolerances import ONE_MS, ONE_UM
 
 R_EARTH = EARTH_EQUATORIAL_RADIUS_M
 KM = 1e3
@@ -52,8 +53,6 @@ ORBIT_RADIUS_M = 7000.0 * KM
 X, Y, Z = np.eye(3)
 
 # Tolerances, named in their units.
-ONE_MICROMETRE = 1e-6  # m
-ONE_MILLISECOND = 1e-3  # s
 TWENTY_MICROSECONDS = 2e-5  # s
 ANGLE_ROUNDING_RAD = 1e-14  # rad: float64 rounding of an atan2 of O(1) inputs
 # rad: direction of a 10 km offset added to a 7000 km position, whose rounding (~1e-9 m)
@@ -83,8 +82,8 @@ def test_tangent_segment_clearance_is_the_tangent_altitude(altitude_m: float) ->
     foot = (R_EARTH + altitude_m) * Y
     a = TILT @ (foot - 3000.0 * KM * X)
     b = TILT @ (foot + 1234.5 * KM * X)
-    assert los_clearance_m(a, b) == pytest.approx(altitude_m, abs=ONE_MICROMETRE)
-    assert los_clearance_m(b, a) == pytest.approx(altitude_m, abs=ONE_MICROMETRE)
+    assert los_clearance_m(a, b) == pytest.approx(altitude_m, abs=ONE_UM)
+    assert los_clearance_m(b, a) == pytest.approx(altitude_m, abs=ONE_UM)
 
 
 def test_chord_between_two_satellites_on_one_orbit() -> None:
@@ -95,7 +94,7 @@ def test_chord_between_two_satellites_on_one_orbit() -> None:
     a = TILT @ (r * np.array([math.cos(angle), math.sin(angle), 0.0]))
     b = TILT @ (r * np.array([math.cos(angle), -math.sin(angle), 0.0]))
     expected = r * math.cos(angle) - R_EARTH
-    assert los_clearance_m(a, b) == pytest.approx(expected, abs=ONE_MICROMETRE)
+    assert los_clearance_m(a, b) == pytest.approx(expected, abs=ONE_UM)
 
 
 def test_clearance_at_an_end_point_when_the_segment_points_away() -> None:
@@ -104,15 +103,15 @@ def test_clearance_at_an_end_point_when_the_segment_points_away() -> None:
     h = 500.0 * KM
     a = TILT @ ((R_EARTH + h) * X)
     b = TILT @ ((R_EARTH + h + 1000.0 * KM) * X + 500.0 * KM * Y)
-    assert los_clearance_m(a, b) == pytest.approx(h, abs=ONE_MICROMETRE)
-    assert los_clearance_m(b, a) == pytest.approx(h, abs=ONE_MICROMETRE)
-    assert los_clearance_m(a, a) == pytest.approx(h, abs=ONE_MICROMETRE)
+    assert los_clearance_m(a, b) == pytest.approx(h, abs=ONE_UM)
+    assert los_clearance_m(b, a) == pytest.approx(h, abs=ONE_UM)
+    assert los_clearance_m(a, a) == pytest.approx(h, abs=ONE_UM)
 
 
 def test_segment_through_the_centre_has_clearance_minus_radius() -> None:
     a = TILT @ (-2.0 * R_EARTH * X)
     b = TILT @ (3.0 * R_EARTH * X)
-    assert los_clearance_m(a, b) == pytest.approx(-R_EARTH, abs=ONE_MICROMETRE)
+    assert los_clearance_m(a, b) == pytest.approx(-R_EARTH, abs=ONE_UM)
 
 
 def test_clearance_matches_dense_sampling_of_random_segments() -> None:
@@ -130,8 +129,8 @@ def test_clearance_matches_dense_sampling_of_random_segments() -> None:
     half_spacing = 0.5 * np.linalg.norm(b - a, axis=1) / (t.size - 1)
     closest = clearance + R_EARTH
     excess_bound = np.minimum(half_spacing, half_spacing**2 / (2.0 * closest))
-    assert np.all(sampled - clearance >= -ONE_MICROMETRE)
-    assert np.all(sampled - clearance <= excess_bound + ONE_MICROMETRE)
+    assert np.all(sampled - clearance >= -ONE_UM)
+    assert np.all(sampled - clearance <= excess_bound + ONE_UM)
 
 
 def test_clearance_shapes_broadcast_and_scalars() -> None:
@@ -506,10 +505,10 @@ def test_propagated_cylindrical_eclipse_matches_the_closed_form(beta_deg: float)
     assert beta_angle_rad(r0, v0, sun) == pytest.approx(beta, abs=ANGLE_ROUNDING_RAD)
     (entry,), (exit_,) = crossings(r0, v0, 10.0, cylinder_function(sun))
     expected = cylindrical_eclipse_duration_s(ORBIT_RADIUS_M, beta)
-    assert exit_ - entry == pytest.approx(expected, abs=ONE_MILLISECOND)
+    assert exit_ - entry == pytest.approx(expected, abs=ONE_MS)
     # Symmetric about the point opposite the Sun, half a period after the start.
     period = orbital_period_s(ORBIT_RADIUS_M)
-    assert 0.5 * (entry + exit_) == pytest.approx(0.5 * period, abs=ONE_MILLISECOND)
+    assert 0.5 * (entry + exit_) == pytest.approx(0.5 * period, abs=ONE_MS)
     # The module's membership test agrees with the crossing times.
     times = np.array([entry - 0.01, entry + 0.01, exit_ - 0.01, exit_ + 0.01])
     r, _ = propagate(r0, v0, times, j2=False, method="dop853")

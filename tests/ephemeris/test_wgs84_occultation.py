@@ -25,12 +25,12 @@ from satsight.ephemeris.occultation import (
 from satsight.ephemeris.visibility import assess_visibility
 from satsight.ephemeris.wgs84 import geodetic_height_m
 from satsight.errors import SatsightError
+from tolerances import ONE_MM
 
 A = WGS84_SEMI_MAJOR_AXIS_M
 B = WGS84_SEMI_MINOR_AXIS_M
 KM = 1e3
 X, Y, Z = np.eye(3)
-ONE_MILLIMETRE = 1e-3  # m
 
 ROTATION = Rotation.from_euler("zxz", [0.4, -1.1, 2.5]).as_matrix()  # an arbitrary Earth
 
@@ -94,11 +94,11 @@ def test_polar_line_clears_the_ellipsoid_but_not_the_sphere() -> None:
     over_equator = (np.array([A + h, -1500.0 * KM, 0.0]), np.array([A + h, 1500.0 * KM, 0.0]))
     for a, b in (over_pole, over_equator):
         got = los_clearance_m(gcrs(a), gcrs(b), R_itrs_from_gcrs=ROTATION)
-        assert got == pytest.approx(h, abs=ONE_MILLIMETRE)
+        assert got == pytest.approx(h, abs=ONE_MM)
         assert not earth_occults(gcrs(a), gcrs(b), R_itrs_from_gcrs=ROTATION)
-    assert los_clearance_m(*over_pole) == pytest.approx(B + h - A, abs=ONE_MILLIMETRE)
+    assert los_clearance_m(*over_pole) == pytest.approx(B + h - A, abs=ONE_MM)
     assert earth_occults(*over_pole)
-    assert los_clearance_m(*over_equator) == pytest.approx(h, abs=ONE_MILLIMETRE)
+    assert los_clearance_m(*over_equator) == pytest.approx(h, abs=ONE_MM)
     assert not earth_occults(*over_equator)
     assert DEFAULT_ATMOSPHERE_MARGIN_M == 100.0 * KM
 
@@ -118,7 +118,7 @@ def test_lines_across_a_surface_normal_have_its_height_as_clearance(height_m: fl
         starts.append(q + height_m * n - before * across)
         ends.append(q + height_m * n + after * across)
     got = los_clearance_m(gcrs(starts), gcrs(ends), R_itrs_from_gcrs=ROTATION)
-    np.testing.assert_allclose(got, height_m, rtol=0.0, atol=ONE_MILLIMETRE)
+    np.testing.assert_allclose(got, height_m, rtol=0.0, atol=ONE_MM)
 
 
 def test_clearance_matches_a_nested_numerical_minimisation() -> None:
@@ -139,7 +139,7 @@ def test_clearance_matches_a_nested_numerical_minimisation() -> None:
     assert 3 < np.count_nonzero(enters) < 21  # both kinds present
     np.testing.assert_array_equal(got < 0.0, enters)
     for k in np.flatnonzero(~enters):
-        assert got[k] == pytest.approx(lowest_height_along(a[k], b[k]), abs=ONE_MILLIMETRE)
+        assert got[k] == pytest.approx(lowest_height_along(a[k], b[k]), abs=ONE_MM)
     # Inside: b (rho - 1), within a factor a / b of the true depth (> 0 and < b).
     assert np.all(got[enters] > -B)
 
@@ -147,12 +147,12 @@ def test_clearance_matches_a_nested_numerical_minimisation() -> None:
 def test_segment_through_the_centre_and_the_geodetic_height() -> None:
     a, b = np.array([0.0, 0.0, 7000.0 * KM]), np.array([0.0, 0.0, -7000.0 * KM])
     got = los_clearance_m(gcrs(a), gcrs(b), R_itrs_from_gcrs=ROTATION)
-    assert got == pytest.approx(-B, abs=ONE_MILLIMETRE)
+    assert got == pytest.approx(-B, abs=ONE_MM)
     # geodetic_height_m against the numerical distance at a few outside points.
     points = np.array([[0.0, 0.0, B + 10.0 * KM], [A + 5.0, 0.0, 0.0], [4e6, 3e6, 5e6]])
     heights, normals = geodetic_height_m(points)
     for point, height in zip(points, heights, strict=True):
-        assert height == pytest.approx(distance_to_ellipsoid(point), abs=ONE_MILLIMETRE)
+        assert height == pytest.approx(distance_to_ellipsoid(point), abs=ONE_MM)
     np.testing.assert_allclose(normals[0], Z, atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-15)
 
@@ -180,7 +180,7 @@ def test_assess_visibility_uses_the_ellipsoid() -> None:
     sun = gcrs(AU_M * X)
     with_shape = assess_visibility(target, observer, sun, R_itrs_from_gcrs=ROTATION)
     sphere = assess_visibility(target, observer, sun)
-    assert with_shape.los_clearance_m[0] == pytest.approx(h, abs=ONE_MILLIMETRE)
+    assert with_shape.los_clearance_m[0] == pytest.approx(h, abs=ONE_MM)
     assert not with_shape.earth_occulted[0]
     assert sphere.earth_occulted[0]
 

@@ -13,13 +13,13 @@ from scipy.spatial.transform import Rotation
 from satsight.errors import SatsightError
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_from_axis_angle
 from satsight.frames.rigid import RigidTransform, look_at_cam_from_body
+from tolerances import ONE_NM
 
 ATOL = 1e-12  # rotations and unit vectors
 # canonical_quaternion writes a |qw| <= 1e-12 (too small to decide the sign) as |qw|
 # (satsight.frames.quaternion): the rotation it gives back can differ by up to 2 x 2e-12 per
 # matrix element (2 qw qz terms), near 180-degree turns.
 CANONICAL_MATRIX_ATOL = 4e-12 + ATOL
-ONE_NM = 1e-9  # positions of points within ~1 km, metres
 PROPERTY = settings(max_examples=50, deadline=None)
 
 _component = st.floats(min_value=-1.0, max_value=1.0, allow_nan=False, allow_subnormal=False)

@@ -14,7 +14,6 @@ import trimesh
 from scipy.ndimage import binary_dilation
 from scipy.spatial.transform import Rotation
 
-from builders import MICRO_PX, ONE_MM
 from satsight.camera.pinhole import PinholeCamera
 from satsight.dataset.labels import frame_labels
 from satsight.lighting.light_field import LightField
@@ -24,6 +23,7 @@ from satsight.render.direct import DirectRenderer
 from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings
 from satsight.scene.procedural import generate_satellite
+from tolerances import MICRO_PX, ONE_MM
 
 AGREEMENT_FRACTION = 0.999
 SUN = SunLight(np.array([0.4, -0.3, 0.85]), 671.5)
