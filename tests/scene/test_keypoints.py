@@ -28,8 +28,8 @@ from satsight.scene.keypoints import (
     target_keypoints_body_m,
 )
 from satsight.scene.procedural import SATELLITE_CLASSES, generate_satellite
+from tolerances import ONE_MM
 
-ONE_MM = 1e-3
 BOX_EXTENTS_M = (2.0, 1.2, 0.8)
 
 

@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import math
 import shutil
+from collections import Counter
 
 import numpy as np
 import pytest
+from matplotlib import colormaps
 
 from chi2_helpers import direction, importance_sampled_albedo
+from figure_checks import figure_pixels, has_colour
 from satsight.errors import SatsightError
 from satsight.scene.band_reflectance import material_from_entry, material_rgb_reflectance
 from satsight.scene.material_library import (
@@ -107,9 +110,14 @@ def test_report_rows_and_table(library) -> None:
     assert "mli_aluminised_kapton" in text and "white_paint_az93" in text
 
 
-def test_plot_is_written(tmp_path) -> None:
+def test_plot_shows_every_category_with_the_band_shaded(tmp_path) -> None:
     out = plot_library_spectra(tmp_path / "spectra.png")
-    assert out.stat().st_size > 10_000
+    # 12 x 8.5 inches at 110 dpi; the shaded band is grey 0.9; each panel's curves take
+    # the default colour cycle from its start, so the busiest panel shows that many colours.
+    pixels = figure_pixels(out, (1320, 935))
+    assert has_colour(pixels, (0.9, 0.9, 0.9), atol=1)
+    per_panel = max(Counter(e.category for e in load_library().values()).values())
+    assert all(has_colour(pixels, colormaps["tab10"](k)) for k in range(min(per_panel, 10)))
 
 
 def _copy_library(tmp_path):

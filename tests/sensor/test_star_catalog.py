@@ -17,9 +17,8 @@ from satsight.sensor import star_photometry as sp
 from satsight.sensor.star_astrometry import aberrate, directions_icrs
 from satsight.sensor.star_catalog import load_star_catalog
 from satsight.sensor.star_photometry import star_photon_flux_m2_s, temperature_from_b_minus_v
+from tolerances import ARCSEC_RAD, MAS_RAD
 
-MAS = math.pi / (180 * 3600e3)
-ARCSEC = 1000 * MAS
 C = const.c
 
 
@@ -125,17 +124,17 @@ def test_every_bright_hipparcos_star_has_an_entry():
     u = sa.propagate_directions(
         hip["ra_rad"][bright],
         hip["dec_rad"][bright],
-        hip["pm_ra_cosdec_mas_yr"][bright] * MAS,
-        hip["pm_dec_mas_yr"][bright] * MAS,
+        hip["pm_ra_cosdec_mas_yr"][bright] * MAS_RAD,
+        hip["pm_dec_mas_yr"][bright] * MAS_RAD,
         24.75,
     )
     tree = cKDTree(sa.unit_vectors(catalog.ra_rad, catalog.dec_rad))
-    dist, idx = tree.query(u, k=4, distance_upper_bound=5 * ARCSEC)
+    dist, idx = tree.query(u, k=4, distance_upper_bound=5 * ARCSEC_RAD)
     ok = np.isfinite(dist)
     dmag = np.abs(catalog.v_mag[np.where(ok, idx, 0)] - hip["hp_mag"][bright][:, None])
     found = np.any(ok & (dmag < 1.5), axis=1)
     assert found.all(), np.flatnonzero(~found)
-    within_1p5 = np.any(ok & (dmag < 1.5) & (dist < 1.5 * ARCSEC), axis=1)
+    within_1p5 = np.any(ok & (dmag < 1.5) & (dist < 1.5 * ARCSEC_RAD), axis=1)
     assert np.sum(~within_1p5) < 100
 
 
@@ -169,13 +168,15 @@ def test_g_minus_v_riello_values():
 
 
 def test_cross_match_is_one_to_one_and_closest_first():
-    u_b = sa.unit_vectors(np.array([0.0, 1.0 * ARCSEC, 0.5]), np.zeros(3))
-    u_a = sa.unit_vectors(np.array([0.4 * ARCSEC, 0.6 * ARCSEC, 0.5 + 3 * ARCSEC]), np.zeros(3))
-    ia, ib, sep = sa.cross_match(u_a, u_b, np.zeros(3), np.zeros(3), 1.5 * ARCSEC, 1.5)
+    u_b = sa.unit_vectors(np.array([0.0, 1.0 * ARCSEC_RAD, 0.5]), np.zeros(3))
+    u_a = sa.unit_vectors(
+        np.array([0.4 * ARCSEC_RAD, 0.6 * ARCSEC_RAD, 0.5 + 3 * ARCSEC_RAD]), np.zeros(3)
+    )
+    ia, ib, sep = sa.cross_match(u_a, u_b, np.zeros(3), np.zeros(3), 1.5 * ARCSEC_RAD, 1.5)
     pairs = dict(zip(ia.tolist(), ib.tolist(), strict=True))
     assert pairs == {0: 0, 1: 1}  # a1 is closer to b1 (0.4") than a0 (0.6"); a2 too far
-    assert np.allclose(sorted(sep / ARCSEC), [0.4, 0.4], atol=1e-6)
-    ia, ib, _ = sa.cross_match(u_a, u_b, np.zeros(3), np.full(3, 2.0), 1.5 * ARCSEC, 1.5)
+    assert np.allclose(sorted(sep / ARCSEC_RAD), [0.4, 0.4], atol=1e-6)
+    ia, ib, _ = sa.cross_match(u_a, u_b, np.zeros(3), np.full(3, 2.0), 1.5 * ARCSEC_RAD, 1.5)
     assert ia.size == 0  # magnitude test rejects every pair
 
 
@@ -186,7 +187,7 @@ def _synthetic_catalog(n: int, rng: np.random.Generator) -> sc.StarCatalog:
     ra = rng.uniform(0, 2 * math.pi, n)
     dec = np.arcsin(rng.uniform(-1, 1, n))
     dec[:3] = [math.radians(89.99), math.radians(-89.9), 0.0]  # near the poles too
-    pm = rng.normal(0, 2000, (2, n)) * MAS  # up to ~10 arcsec/yr
+    pm = rng.normal(0, 2000, (2, n)) * MAS_RAD  # up to ~10 arcsec/yr
     z = np.zeros(n)
     return sc.StarCatalog(
         source_id=np.arange(n),
@@ -224,10 +225,10 @@ def test_proper_motion_matches_astropy():
         ).apply_space_motion(new_obstime=Time(2026.0, format="jyear"))
     ref = sa.unit_vectors(coord.ra.rad, coord.dec.rad)
     err = np.linalg.norm(ours - ref, axis=1)
-    assert err.max() < 1 * MAS, err.max() / MAS
+    assert err.max() < 1 * MAS_RAD, err.max() / MAS_RAD
     # The motion itself is large: sanity that the test is not trivial.
     moved = np.arccos(np.clip(np.sum(ours * sa.unit_vectors(cat.ra_rad, cat.dec_rad), 1), -1, 1))
-    assert moved.max() > 50 * ARCSEC
+    assert moved.max() > 50 * ARCSEC_RAD
 
 
 def test_aberration_first_order_and_erfa():
@@ -250,7 +251,7 @@ def test_aberration_first_order_and_erfa():
     bm1 = math.sqrt(1 - beta**2)
     ref = erfa.ab(u, v / C, 1e9, bm1)  # Sun far away: potential term vanishes
     err = np.linalg.norm(out - ref, axis=1)
-    assert err.max() < 1e-3 * MAS
+    assert err.max() < 1e-3 * MAS_RAD
     with pytest.raises(SatsightError, match="speed of light"):
         aberrate(u, np.array([3e8, 0, 0]))
     with pytest.raises(SatsightError, match="unit vectors"):
