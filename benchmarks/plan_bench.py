@@ -23,11 +23,11 @@ EXAMPLES = ("fly_around", "fly_by", "approach", "rssf_dataset")
 
 
 def _time(scenario, center, repeats: int) -> tuple[float, int]:
-    plan_track(scenario, center)  # first call: ephemeris file opened and cached
+    plan_track(scenario.plan_request(), center)  # first call: ephemeris file opened and cached
     seconds = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        track = plan_track(scenario, center)
+        track = plan_track(scenario.plan_request(), center)
         seconds.append(time.perf_counter() - t0)
     return statistics.median(seconds), len(track)
 

@@ -231,7 +231,7 @@ def test_orbital_scenario_ablates_its_lit_frames_only():
     from satsight.poses.plan import plan_track
 
     scenario = load_scenario(example_scenario_path().parent / "fly_by.yaml")
-    track = plan_track(scenario, build_target(scenario.target).center_m)
+    track = plan_track(scenario.plan_request(), build_target(scenario.target).center_m)
     dark = track.sunlit_fraction[:8] == 0.0
     assert dark.any()  # the example's pass crosses the umbra
     planned: list[int] = []

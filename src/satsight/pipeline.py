@@ -160,8 +160,9 @@ def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:
 
 def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:
     """The scenario's frame plan and the indices of the frames to render."""
-    track = plan_track(scenario, mesh.center_m, mesh.bounding_radius_m)
-    indices = frames_to_render(scenario, track)
+    request = scenario.plan_request()
+    track = plan_track(request, mesh.center_m, mesh.bounding_radius_m)
+    indices = frames_to_render(request, track)
     if indices.size == 0:
         raise SatsightError(
             f"none of the {len(track)} planned frames passes the visibility tests, and "

@@ -63,7 +63,7 @@ def target_states(scenario, times_s):
 
 def test_fly_around_frames_every_5_degrees_look_at_the_box_centre() -> None:
     scenario = scenario_with()
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     period = orbital_period_s(7000e3)
     assert len(track) == 72
     np.testing.assert_allclose(track.time_s, np.arange(72) * period / 72, rtol=0, atol=1e-9)
@@ -87,7 +87,7 @@ def test_inertial_camera_attitude_and_state_agree_with_the_geometry(changes) -> 
     """q_cam_from_gcrs, the camera's GCRS state and the body-frame pose tell one story: the
     Sun and the box centre seen in camera axes through either route."""
     scenario = scenario_with(**changes)
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     assert track.has_sky
     r, v = target_states(scenario, track.time_s)
     sun = sun_position_gcrs_m(epoch_times(scenario.epoch_utc, track.time_s))
@@ -119,7 +119,7 @@ def test_inertial_camera_attitude_and_state_agree_with_the_geometry(changes) -> 
 
 def test_fly_around_without_j2_is_a_closed_circle() -> None:
     scenario = scenario_with(propagation={"j2": False})
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     # Two-body: the energy-matched CW circle closes; its range departs from 1 km only by
     # the second-order terms (3/2) rho^2 / a ~ 0.2 m, measured 1.2 m.
     assert np.all(np.abs(track.range_m - 1000.0) < 1.5)
@@ -127,7 +127,7 @@ def test_fly_around_without_j2_is_a_closed_circle() -> None:
 
 def test_lvlh_fixed_target_sees_the_earth_along_body_z() -> None:
     scenario = scenario_with()
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     r, _ = target_states(scenario, track.time_s)
     for i in range(0, len(track), 9):
         earth_body = body_from_cam(track, i) @ track.earth_from_target_cam[i]
@@ -142,7 +142,7 @@ def test_lvlh_fixed_target_sees_the_earth_along_body_z() -> None:
 
 def test_sun_direction_in_the_body_frame_matches_an_lvlh_construction() -> None:
     scenario = scenario_with()
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     r, v = target_states(scenario, track.time_s)
     sun = sun_position_gcrs_m(epoch_times(scenario.epoch_utc, track.time_s))
     expected = np.einsum("nij,nj->ni", lvlh_from_inertial(r, v), sun - r)
@@ -153,7 +153,7 @@ def test_sun_direction_in_the_body_frame_matches_an_lvlh_construction() -> None:
 
 
 def test_orbit_normal_roll_puts_image_x_along_the_orbit_normal() -> None:
-    track = plan_track(scenario_with(), CENTER_M)
+    track = plan_track(scenario_with().plan_request(), CENTER_M)
     normal_rtn = np.array([0.0, 0.0, 1.0])
     for i in range(len(track)):
         R_rtn_from_cam = R_RTN_FROM_BODY @ body_from_cam(track, i)
@@ -170,7 +170,7 @@ def test_hover_ahead_reproduces_the_papers_initial_view() -> None:
         observer={"mode": "hover", "range_km": 100.0},
         sampler={"kind": "sspt", "frame_count": 5},
     )
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     for i in range(len(track)):
         R_rtn_from_cam = R_RTN_FROM_BODY @ body_from_cam(track, i)
         # The chord to a point 100 km ahead on the orbit dips by 100/7000/2 rad = 0.007.
@@ -190,7 +190,7 @@ def test_approach_passes_through_every_interval_geometrically() -> None:
         observer={"mode": "approach", "revolutions": 2, "schedule": "geometric"},
         sampler={"kind": "sspt", "frame_count": 61},
     )
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     assert track.range_m[0] == pytest.approx(50e3, rel=1e-9)
     assert track.range_m[-1] == pytest.approx(0.5e3, rel=1e-9)
     ratios = track.range_m[1:] / track.range_m[:-1]
@@ -205,7 +205,7 @@ def test_approach_balanced_over_the_intervals_by_default() -> None:
         observer={"mode": "approach"},
         sampler={"kind": "sspt", "frame_count": 60},
     )
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     names, counts = np.unique(track.interval, return_counts=True)
     # 60 uniform frames over six equal time spans: 10 each (an edge frame counts for the
     # interval it is the near edge of).
@@ -219,7 +219,7 @@ def test_fly_by_closest_approach_is_the_miss_distance_mid_pass() -> None:
         sampler={"kind": "sspt", "frame_count": 101},
         propagation={"j2": False},
     )
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     closest = int(np.argmin(track.range_m))
     assert closest == pytest.approx(50, abs=1)
     # CW's co-elliptic pass in the full two-body dynamics: the linear initial state leaves a
@@ -241,7 +241,7 @@ def test_observer_on_its_own_elements_matches_a_phase_shifted_target() -> None:
         sampler={"kind": "sspt", "frame_count": 20},
         propagation={"j2": False},
     )
-    track = plan_track(scenario, np.zeros(3))
+    track = plan_track(scenario.plan_request(), np.zeros(3))
     # Same circular orbit, 2 km of arc ahead: a constant chord 2 a sin(theta / 2).
     chord = 2 * 7000e3 * math.sin(math.radians(shift_deg) / 2)
     np.testing.assert_allclose(track.range_m, chord, rtol=1e-7)
@@ -249,10 +249,12 @@ def test_observer_on_its_own_elements_matches_a_phase_shifted_target() -> None:
 
 def test_rssf_views_are_balanced_seeded_and_lattice_spaced() -> None:
     scenario = scenario_with(observer=None, sampler={"kind": "rssf", "frame_count": 70})
-    track = plan_track(scenario, CENTER_M)
-    again = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
+    again = plan_track(scenario.plan_request(), CENTER_M)
     other = plan_track(
-        scenario_with(observer=None, sampler={"kind": "rssf", "frame_count": 70, "seed": 6}),
+        scenario_with(
+            observer=None, sampler={"kind": "rssf", "frame_count": 70, "seed": 6}
+        ).plan_request(),
         CENTER_M,
     )
     np.testing.assert_array_equal(track.q_cam_from_body, again.q_cam_from_body)
@@ -289,16 +291,19 @@ def test_visibility_policies() -> None:
         "epoch_utc": "2025-09-01T00:00:00Z",
     }
     flagged = scenario_with(**base)
-    track = plan_track(flagged, CENTER_M)
+    track = plan_track(flagged.plan_request(), CENTER_M)
     assert 0 < track.eclipsed.sum() < len(track)
     np.testing.assert_array_equal(track.eclipsed, track.sunlit_fraction < 1.0 - 1e-9)
-    np.testing.assert_array_equal(frames_to_render(flagged, track), np.arange(len(track)))
+    np.testing.assert_array_equal(
+        frames_to_render(flagged.plan_request(), track), np.arange(len(track))
+    )
     skip = scenario_with(**base, visibility={"on_fail": "skip"})
     np.testing.assert_array_equal(
-        frames_to_render(skip, plan_track(skip, CENTER_M)), np.flatnonzero(track.visible)
+        frames_to_render(skip.plan_request(), plan_track(skip.plan_request(), CENTER_M)),
+        np.flatnonzero(track.visible),
     )
     keep = scenario_with(**base, visibility={"on_fail": "keep"})
-    kept = plan_track(keep, CENTER_M)
+    kept = plan_track(keep.plan_request(), CENTER_M)
     assert kept.visible.all()
     np.testing.assert_array_equal(kept.sunlit_fraction, track.sunlit_fraction)
 
@@ -310,7 +315,7 @@ def test_frame_light_scales_the_sun_by_distance_and_shadow() -> None:
         orbit={"semi_major_axis_km": 7078.0, "inclination_deg": 98.2, "raan_deg": 120.0},
         epoch_utc="2025-09-01T00:00:00Z",
     )
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     at_1_au = band_irradiance_w_m2(scenario.sun.band_nm, scenario.sun.spectrum, 1.0)
     for i in (int(np.argmin(track.eclipsed)), int(np.argmax(track.eclipsed))):
         light, sun = frame_light(scenario, track, i)
@@ -329,7 +334,7 @@ def test_views_in_the_body_frame_keep_their_poses() -> None:
     from satsight.cli import example_scenario_path
 
     scenario = load_scenario(example_scenario_path())
-    track = plan_track(scenario, CENTER_M)
+    track = plan_track(scenario.plan_request(), CENTER_M)
     sun_body = scenario.sun.build().direction_body
     for i, frame in enumerate(scenario.frames):
         pose = frame.build().cam_from_body(CENTER_M)
@@ -346,11 +351,15 @@ def test_views_in_the_body_frame_keep_their_poses() -> None:
 
 
 def test_frame_count_over_a_closed_orbit_leaves_out_the_repeated_view() -> None:
-    track = plan_track(scenario_with(sampler={"kind": "sspt", "frame_count": 12}), CENTER_M)
+    track = plan_track(
+        scenario_with(sampler={"kind": "sspt", "frame_count": 12}).plan_request(), CENTER_M
+    )
     period = orbital_period_s(7000e3)
     np.testing.assert_allclose(track.time_s, np.arange(12) * period / 12, atol=1e-9)
     with_duration = scenario_with(sampler={"kind": "sspt", "frame_count": 12, "duration_s": period})
-    assert plan_track(with_duration, CENTER_M).time_s[-1] == pytest.approx(period, abs=1e-9)
+    assert plan_track(with_duration.plan_request(), CENTER_M).time_s[-1] == pytest.approx(
+        period, abs=1e-9
+    )
 
 
 def test_a_camera_inside_the_earth_or_the_target_is_refused() -> None:
@@ -361,10 +370,10 @@ def test_a_camera_inside_the_earth_or_the_target_is_refused() -> None:
         sampler={"kind": "sspt", "frame_count": 3},
     )
     with pytest.raises(SatsightError, match="inside the Earth"):
-        plan_track(below, CENTER_M)
+        plan_track(below.plan_request(), CENTER_M)
     same_orbit = scenario_with(
         observer={"mode": "elements", "orbit": BASE["orbit"]},
         sampler={"kind": "sspt", "frame_count": 3},
     )
     with pytest.raises(SatsightError, match="inside its bounding sphere"):
-        plan_track(same_orbit, CENTER_M, target_radius_m=5.0)
+        plan_track(same_orbit.plan_request(), CENTER_M, target_radius_m=5.0)

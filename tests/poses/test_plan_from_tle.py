@@ -67,7 +67,7 @@ def test_epoch_defaults_to_the_tle_epoch() -> None:
 
 def test_fly_around_target_follows_sgp4() -> None:
     scenario = parse_scenario(_scenario())
-    track = plan_track(scenario, np.zeros(3), target_radius_m=5.0)
+    track = plan_track(scenario.plan_request(), np.zeros(3), target_radius_m=5.0)
     r_sgp4, _ = parse_tle(ISS)[0].state_gcrs(epoch_times(scenario.epoch_utc, track.time_s))
     assert np.max(np.linalg.norm(_target_positions(track) - r_sgp4, axis=1)) < ONE_MM
     # The relative orbit rides on the SGP4 trajectory: its range stays near 1 km over the
@@ -93,7 +93,7 @@ def test_relative_modes_with_a_tle_target(observer: dict) -> None:
             observer=observer, sampler={"kind": "sspt", "frame_count": 9, "duration_s": 1800.0}
         )
     )
-    track = plan_track(scenario, np.zeros(3), target_radius_m=5.0)
+    track = plan_track(scenario.plan_request(), np.zeros(3), target_radius_m=5.0)
     r_sgp4, _ = parse_tle(ISS)[0].state_gcrs(epoch_times(scenario.epoch_utc, track.time_s))
     assert np.max(np.linalg.norm(_target_positions(track) - r_sgp4, axis=1)) < ONE_MM
     assert np.all(track.range_m < 6000.0)
@@ -107,7 +107,7 @@ def test_observer_on_its_own_tle() -> None:
             sampler={"kind": "sspt", "frame_count": 5, "duration_s": 600.0},
         )
     )
-    track = plan_track(scenario, np.zeros(3), target_radius_m=5.0)
+    track = plan_track(scenario.plan_request(), np.zeros(3), target_radius_m=5.0)
     times = epoch_times(scenario.epoch_utc, track.time_s)
     r_chaser, _ = parse_tle(chaser)[0].state_gcrs(times)
     assert np.max(np.linalg.norm(track.camera_position_gcrs_m - r_chaser, axis=1)) < ONE_MM
@@ -116,7 +116,7 @@ def test_observer_on_its_own_tle() -> None:
 
 def test_rssf_with_a_tle_target() -> None:
     scenario = parse_scenario(_scenario(observer=None, sampler={"kind": "rssf", "frame_count": 7}))
-    track = plan_track(scenario, np.zeros(3), target_radius_m=5.0)
+    track = plan_track(scenario.plan_request(), np.zeros(3), target_radius_m=5.0)
     r_sgp4, _ = parse_tle(ISS)[0].state_gcrs(epoch_times(scenario.epoch_utc, [0.0]))
     assert np.max(np.linalg.norm(_target_positions(track) - r_sgp4, axis=1)) < ONE_MM
 
@@ -136,7 +136,7 @@ def test_oem_target_equals_its_interpolation(tmp_path: Path) -> None:
     (tmp_path / "scenario.yaml").write_text(yaml.safe_dump(data))
     scenario = load_scenario(tmp_path / "scenario.yaml")  # the file is found beside it
     assert scenario.epoch_utc == "2019-12-09T16:40:00.000000Z"
-    track = plan_track(scenario, np.zeros(3), target_radius_m=5.0)
+    track = plan_track(scenario.plan_request(), np.zeros(3), target_radius_m=5.0)
     ephemeris = read_oem(tmp_path / "target.oem")
     r_oem, _ = ephemeris.state_gcrs(epoch_times(scenario.epoch_utc, track.time_s))
     assert np.max(np.linalg.norm(_target_positions(track) - r_oem, axis=1)) < ONE_MM
@@ -145,7 +145,9 @@ def test_oem_target_equals_its_interpolation(tmp_path: Path) -> None:
 def test_bundled_tle_and_oem_examples_plan() -> None:
     folder = Path(str(resources.files("satsight") / "examples"))
     for name in ("tle_iss_fly_around.yaml", "oem_iss_hover.yaml"):
-        track = plan_track(load_scenario(folder / name), np.zeros(3), target_radius_m=5.0)
+        track = plan_track(
+            load_scenario(folder / name).plan_request(), np.zeros(3), target_radius_m=5.0
+        )
         assert np.all(np.abs(track.range_m - 1000.0) < 10.0)
 
 
@@ -160,7 +162,7 @@ def test_errors() -> None:
         parse_scenario(_scenario(tle={"lines": ISS[1:], "file": "x.tle"}))
     late = parse_scenario(_scenario(epoch_utc="2020-01-20T00:00:00Z"))
     with pytest.raises(SatsightError, match=r"refused beyond 30 days"):
-        plan_track(late, np.zeros(3), target_radius_m=5.0)
+        plan_track(late.plan_request(), np.zeros(3), target_radius_m=5.0)
     with pytest.raises(SatsightError, match=r"OEM file not found"):
         parse_scenario(
             _scenario(

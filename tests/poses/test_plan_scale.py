@@ -60,11 +60,12 @@ _CHILD = textwrap.dedent(
         )
         return scenario.model_copy(update={"sampler": sampler})
 
-    plan_track(with_frames(4), mesh.center_m)  # ephemeris files opened, caches filled
+    # Ephemeris files opened, caches filled.
+    plan_track(with_frames(4).plan_request(), mesh.center_m)
     seconds, frames = [], []
     for n in counts:
         t0 = time.perf_counter()
-        track = plan_track(with_frames(n), mesh.center_m, mesh.bounding_radius_m)
+        track = plan_track(with_frames(n).plan_request(), mesh.center_m, mesh.bounding_radius_m)
         seconds.append(time.perf_counter() - t0)
         frames.append(len(track))
         del track
@@ -140,10 +141,10 @@ def test_plan_memory_grows_linearly_not_quadratically() -> None:
     peaks = []
     for n in (5_000, 10_000):
         scenario = _scenario("rssf_dataset.yaml", n)
-        plan.plan_track(_scenario("rssf_dataset.yaml", 4), center)
+        plan.plan_track(_scenario("rssf_dataset.yaml", 4).plan_request(), center)
         tracemalloc.start()
         try:
-            track = plan.plan_track(scenario, center)
+            track = plan.plan_track(scenario.plan_request(), center)
             peaks.append(tracemalloc.get_traced_memory()[1])
         finally:
             tracemalloc.stop()
@@ -170,9 +171,9 @@ def test_plan_memory_grows_linearly_not_quadratically() -> None:
 def test_chunked_plan_equals_the_whole(example: str, frames: int) -> None:
     scenario = _scenario(example, frames)
     center = build_target(scenario.target).center_m
-    whole = plan._orbital_track(scenario, center, chunk_frames=frames)
+    whole = plan._orbital_track(scenario.plan_request(), center, chunk_frames=frames)
     for chunk in (1, 7, frames - 1):
-        chunked = plan._orbital_track(scenario, center, chunk_frames=chunk)
+        chunked = plan._orbital_track(scenario.plan_request(), center, chunk_frames=chunk)
         assert chunked.epoch_utc == whole.epoch_utc
         assert chunked.interval == whole.interval
         for name in PoseTrack.__dataclass_fields__:
@@ -194,7 +195,7 @@ def test_chunk_size_must_be_a_positive_whole_number() -> None:
     center = build_target(scenario.target).center_m
     for bad in (0, -3, 2.5, True):
         with pytest.raises(Exception, match="chunk_frames must be a whole number >= 1"):
-            plan._orbital_track(scenario, center, chunk_frames=bad)
+            plan._orbital_track(scenario.plan_request(), center, chunk_frames=bad)
 
 
 def test_buried_frame_is_named_by_its_plan_index_across_chunks(monkeypatch) -> None:
@@ -212,7 +213,7 @@ def test_buried_frame_is_named_by_its_plan_index_across_chunks(monkeypatch) -> N
     monkeypatch.setattr(plan, "_sspt_flight", buried_flight)
     for _ in range(3):
         with pytest.raises(Exception, match=r"^frame 27 \(t = .* inside the Earth"):
-            plan._orbital_track(scenario, center, chunk_frames=8)
+            plan._orbital_track(scenario.plan_request(), center, chunk_frames=8)
 
 
 # --- interval names at once -----------------------------------------------------------------
@@ -386,7 +387,7 @@ def test_plan_csv_in_chunks_writes_every_float_as_repr(tmp_path: Path, monkeypat
     from satsight.poses import plan_plots
 
     scenario = _scenario("approach.yaml", 40)
-    track = plan.plan_track(scenario, build_target(scenario.target).center_m)
+    track = plan.plan_track(scenario.plan_request(), build_target(scenario.target).center_m)
     whole = plan_plots.write_plan_csv(track, tmp_path / "whole.csv").read_bytes()
     monkeypatch.setattr(plan_plots, "CSV_CHUNK_ROWS", 7)
     chunked = plan_plots.write_plan_csv(track, tmp_path / "chunked.csv").read_bytes()

@@ -32,8 +32,9 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
 
     scenario = load_scenario(config)
     mesh = build_target(scenario.target, scenario.sun.band_nm)
-    track = plan_track(scenario, mesh.center_m, mesh.bounding_radius_m)
-    rendered = frames_to_render(scenario, track)
+    request = scenario.plan_request()
+    track = plan_track(request, mesh.center_m, mesh.bounding_radius_m)
+    rendered = frames_to_render(request, track)
     shown = list(range(len(track)))
     if len(track) > _PLAN_ROWS_SHOWN:
         half = _PLAN_ROWS_SHOWN // 2

@@ -2,7 +2,8 @@
 observer's operational mode, the viewpoint sampler, and the visibility limits.
 
 Non-SI units appear only here, in the key's name (``semi_major_axis_km``, ``radius_km``,
-``rate_body_deg_s``); ``satsight.poses.plan`` converts them to SI.
+``rate_body_deg_s``); ``satsight.config.plan_request`` converts them to SI for the
+frame plan.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.oem import OemEphemeris, read_oem
-from satsight.ephemeris.orbits import MU_EARTH_M3_S2, OrbitalElements, orbital_period_s
+from satsight.ephemeris.orbits import MU_EARTH_M3_S2, OrbitalElements
 from satsight.ephemeris.tle import (
     Sgp4Orbit,
     parse_tle,
@@ -475,44 +476,3 @@ class PropagationConfig(_Strict):
     j2: bool = True
     j2_axis: Literal["true_pole", "gcrs_z"] = "true_pole"
     max_zonal_degree: int = Field(default=2, ge=2, le=4)
-
-
-def natural_span_s(orbit: TrajectoryConfig, observer: BaseModel) -> float:
-    """The default length of an SSPT span for an observer mode, s: one target orbit, a
-    fly-by's whole pass (4 y0 / (3 n x0)), or an approach's ``revolutions`` orbits."""
-    a_m = orbit.semi_major_axis_km * 1e3
-    period = orbital_period_s(a_m)
-    if observer.mode == "fly_by":
-        n = math.sqrt(MU_EARTH_M3_S2 / a_m**3)
-        drift_m_s = 1.5 * n * abs(observer.miss_distance_km * 1e3)
-        return 2.0 * abs(observer.start_along_track_km * 1e3) / drift_m_s
-    if observer.mode == "approach":
-        return observer.revolutions * period
-    return period
-
-
-def check_sspt_size(orbit: TrajectoryConfig, observer: BaseModel, sampler: SsptConfig) -> None:
-    """Refuse SSPT plans longer than MAX_SPAN_S or with more than MAX_FRAMES frames."""
-    span = sampler.duration_s or natural_span_s(orbit, observer)
-    if sampler.start_s + span > MAX_SPAN_S:
-        raise ValueError(
-            f"the SSPT span ends {sampler.start_s + span:.4g} s after the epoch, beyond the "
-            f"{MAX_SPAN_S:.0f} s (366 days) allowed; set sampler.duration_s"
-            + (
-                " (a fly-by's default span is its whole pass, which a small miss distance "
-                "makes long)"
-                if observer.mode == "fly_by" and sampler.duration_s is None
-                else ""
-            )
-        )
-    if sampler.step_s is not None:
-        count = span / sampler.step_s + 1
-    elif sampler.step_deg is not None:
-        count = 360.0 * span / orbital_period_s(orbit.semi_major_axis_km * 1e3) / sampler.step_deg
-    else:
-        count = sampler.frame_count
-    if count > MAX_FRAMES:
-        raise ValueError(
-            f"the sampler would plan {count:.4g} frames, more than {MAX_FRAMES}; use a larger "
-            "step or a shorter duration_s"
-        )

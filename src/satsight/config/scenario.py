@@ -35,9 +35,9 @@ from satsight.config.orbital import (
     TleConfig,
     TrajectoryConfig,
     VisibilityConfig,
-    check_sspt_size,
 )
 from satsight.config.outputs import OutputsConfig
+from satsight.config.plan_request import check_sspt_size, orbital_plan_request
 from satsight.config.sensor import DetectorConfig, ExposureConfig, OpticsConfig, StarsConfig
 from satsight.config.target import (  # noqa: F401 (re-exported: the scenario's sections)
     KeypointsConfig,
@@ -46,11 +46,12 @@ from satsight.config.target import (  # noqa: F401 (re-exported: the scenario's 
     TargetConfig,
 )
 from satsight.config.yaml_safety import load_yaml_file
-from satsight.constants import DEFAULT_BAND_NM
+from satsight.constants import AU_M, DEFAULT_BAND_NM
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.solar_spectrum import SPECTRA, band_irradiance_w_m2
+from satsight.poses.plan_request import PlanRequest, ViewsPlanRequest
 from satsight.poses.views import View, direction_from_angles
 from satsight.render.buffers import SunLight
 from satsight.render.settings import (
@@ -286,13 +287,20 @@ class FrameConfig(_Strict):
             roll_rad=math.radians(self.roll_deg),
         )
 
-    def cam_from_body(self, target_center_body_m: np.ndarray) -> RigidTransform:
-        """The camera pose of this frame (a view looks at ``target_center_body_m``)."""
+    def placement(self) -> View | RigidTransform:
+        """The frame for the plan: its view, or its pose x_cam = R x_body + t."""
         if self.q_cam_from_body is not None:
             return RigidTransform.from_quaternion(
                 np.array(self.q_cam_from_body), np.array(self.t_cam_from_body_m)
             )
-        return self.build().cam_from_body(target_center_body_m)
+        return self.build()
+
+    def cam_from_body(self, target_center_body_m: np.ndarray) -> RigidTransform:
+        """The camera pose of this frame (a view looks at ``target_center_body_m``)."""
+        placement = self.placement()
+        if isinstance(placement, RigidTransform):
+            return placement
+        return placement.cam_from_body(target_center_body_m)
 
 
 class RenderConfig(_Strict):
@@ -417,6 +425,30 @@ class Scenario(_Strict):
         except (ValidationError, SatsightError):
             return data  # reported, with the key's location, by the field validation
         return {**data, "epoch_utc": epoch}
+
+    def plan_request(self) -> PlanRequest:
+        """What the frame plan (``satsight.poses.plan.plan_track``) is asked for: typed, SI."""
+        if self.sampler is None:
+            return ViewsPlanRequest(
+                frames=tuple(frame.placement() for frame in self.frames),
+                sun_direction_body=self.sun.build().direction_body,
+                sun_distance_m=self.sun.distance_au * AU_M,
+                earth_center_from_target_m=None
+                if self.earth is None
+                else self.earth.center_from_target_m(),
+                moon_center_from_target_m=None
+                if self.moon is None
+                else self.moon.center_from_target_m(),
+            )
+        return orbital_plan_request(
+            self.epoch_utc,
+            self.trajectory,
+            self.attitude,
+            self.sampler,
+            self.observer,
+            self.visibility,
+            self.propagation,
+        )
 
     @property
     def trajectory(self) -> TrajectoryConfig | None:

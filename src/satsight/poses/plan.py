@@ -1,4 +1,4 @@
-"""The frame plan of a scenario: from its keys to a ``PoseTrack``.
+"""The frame plan: from what a scenario asks for to a ``PoseTrack``.
 
 Two sources of frames:
 
@@ -25,6 +25,9 @@ Two sources of frames:
 
 The camera always looks at the target's bounding-box centre; its roll about the boresight
 follows the observer's ``camera_roll`` policy (see ``satsight.poses.attitude``).
+
+The plan is asked for with a ``satsight.poses.plan_request.PlanRequest`` (typed, SI), which
+``satsight.config`` builds from a scenario.
 """
 
 from __future__ import annotations
@@ -34,10 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from satsight.config.orbital import ABSOLUTE_TRAJECTORY_MODES
-from satsight.config.orbital import natural_span_s as config_natural_span_s
-from satsight.config.scenario import Scenario
-from satsight.constants import AU_M, EARTH_EQUATORIAL_RADIUS_M
+from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
 from satsight.ephemeris.occultation import inside_earth
 from satsight.ephemeris.orbits import (
@@ -56,6 +56,7 @@ from satsight.ephemeris.wgs84 import geodetic_height_m
 from satsight.errors import SatsightError
 from satsight.frames.orbital import inertial_from_relative_rtn, relative_rtn, rtn_from_inertial
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_conjugate
+from satsight.frames.rigid import RigidTransform
 from satsight.poses import relative_motion as rm
 from satsight.poses.attitude import (
     cam_from_body,
@@ -65,8 +66,22 @@ from satsight.poses.attitude import (
     pointing_gcrs_from_cam,
     spinning_attitude,
 )
+from satsight.poses.plan_request import (
+    Approach,
+    FlyAround,
+    FlyBy,
+    Hover,
+    OrbitalPlanRequest,
+    OwnElements,
+    OwnTrajectory,
+    PlanRequest,
+    RelativeRtn,
+    RssfSampler,
+    TrajectoryStates,
+    ViewsPlanRequest,
+    natural_span_s,
+)
 from satsight.poses.samplers import (
-    DistanceInterval,
     default_intervals,
     interval_name_for_range,
     interval_names_for_ranges,
@@ -91,9 +106,9 @@ def _angle_rad(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def plan_track(
-    scenario: Scenario, target_center_body_m: np.ndarray, target_radius_m: float = 0.0
+    request: PlanRequest, target_center_body_m: np.ndarray, target_radius_m: float = 0.0
 ) -> PoseTrack:
-    """Every frame of ``scenario`` (before the visibility policy drops any).
+    """Every frame ``request`` asks for (before the visibility policy drops any).
 
     target_center_body_m: (3,) the target's bounding-box centre in the body frame, m; the
     camera looks at it. target_radius_m: the radius of the target's bounding sphere about
@@ -101,10 +116,10 @@ def plan_track(
     error.
     """
     center = np.asarray(target_center_body_m, dtype=np.float64).reshape(3)
-    if scenario.sampler is None:
-        track = _views_track(scenario, center)
+    if isinstance(request, ViewsPlanRequest):
+        track = _views_track(request, center)
     else:
-        track = _orbital_track(scenario, center)
+        track = _orbital_track(request, center)
     inside = np.flatnonzero(track.range_m <= target_radius_m)
     if inside.size:
         i = int(inside[0])
@@ -116,9 +131,9 @@ def plan_track(
     return track
 
 
-def frames_to_render(scenario: Scenario, track: PoseTrack) -> np.ndarray:
+def frames_to_render(request: PlanRequest, track: PoseTrack) -> np.ndarray:
     """Indices of the planned frames that are rendered under the visibility policy."""
-    if scenario.sampler is not None and scenario.visibility.on_fail == "skip":
+    if isinstance(request, OrbitalPlanRequest) and request.visibility.on_fail == "skip":
         return np.flatnonzero(track.visible)
     return np.arange(len(track))
 
@@ -126,23 +141,25 @@ def frames_to_render(scenario: Scenario, track: PoseTrack) -> np.ndarray:
 # --- views given in the body frame ---------------------------------------------------------
 
 
-def _views_track(scenario: Scenario, center: np.ndarray) -> PoseTrack:
-    n = len(scenario.frames)
-    poses = [frame.cam_from_body(center) for frame in scenario.frames]
+def _views_track(request: ViewsPlanRequest, center: np.ndarray) -> PoseTrack:
+    n = len(request.frames)
+    poses = [
+        frame if isinstance(frame, RigidTransform) else frame.cam_from_body(center)
+        for frame in request.frames
+    ]
     R = np.stack([p.R_a_from_b for p in poses])
-    sun_body = scenario.sun.build().direction_body
+    sun_body = request.sun_direction_body
     sun_cam = R @ sun_body
     nan3 = np.full((n, 3), np.nan)
     nan = np.full(n, np.nan)
 
-    def body_in_cam(config) -> tuple[np.ndarray, np.ndarray]:
-        if config is None:
+    def body_in_cam(vector: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        if vector is None:
             return nan3, nan
-        vector = config.center_from_target_m()
         return R @ (vector / np.linalg.norm(vector)), np.full(n, np.linalg.norm(vector))
 
-    earth_dir, earth_dist = body_in_cam(scenario.earth)
-    moon_dir, moon_dist = body_in_cam(scenario.moon)
+    earth_dir, earth_dist = body_in_cam(request.earth_center_from_target_m)
+    moon_dir, moon_dist = body_in_cam(request.moon_center_from_target_m)
     center_cam = np.einsum("nij,j->ni", R, center) + np.stack([p.t_a_from_b_m for p in poses])
     range_m = np.linalg.norm(center_cam, axis=1)
     boresight = np.tile([0.0, 0.0, 1.0], (n, 1))
@@ -154,7 +171,7 @@ def _views_track(scenario: Scenario, center: np.ndarray) -> PoseTrack:
         q_cam_from_body=np.stack([p.q_a_from_b for p in poses]),
         t_cam_from_body_m=np.stack([p.t_a_from_b_m for p in poses]),
         sun_from_target_cam=sun_cam,
-        sun_distance_m=np.full(n, scenario.sun.distance_au * AU_M),
+        sun_distance_m=np.full(n, request.sun_distance_m),
         earth_from_target_cam=earth_dir,
         earth_distance_m=earth_dist,
         moon_from_target_cam=moon_dir,
@@ -183,23 +200,23 @@ def _mean_motion_rad_s(elements: OrbitalElements) -> float:
     return math.sqrt(MU_EARTH_M3_S2 / elements.semi_major_axis_m**3)
 
 
-def natural_span_s(scenario: Scenario) -> float:
-    """The default length of an SSPT span for the scenario's observer mode, s."""
-    return config_natural_span_s(scenario.trajectory, scenario.observer)
+def _natural_span_s(request: OrbitalPlanRequest) -> float:
+    """The default length of the request's SSPT span for its observer's motion, s."""
+    return natural_span_s(request.target.semi_major_axis_m, request.observer.motion)
 
 
-def _sspt_times(scenario: Scenario) -> np.ndarray:
-    sampler = scenario.sampler
-    duration = sampler.duration_s or natural_span_s(scenario)
+def _sspt_times(request: OrbitalPlanRequest) -> np.ndarray:
+    sampler = request.sampler
+    duration = sampler.duration_s or _natural_span_s(request)
     start, end = sampler.start_s, sampler.start_s + duration
     if sampler.step_deg is not None:
-        period = orbital_period_s(scenario.trajectory.semi_major_axis_km * 1e3)
+        period = orbital_period_s(request.target.semi_major_axis_m)
         # The fly-around turns 360 degrees per target orbit from the start of the span.
         stop_deg = 360.0 * duration / period
         return sspt_angle_times_s(period, 0.0, stop_deg, sampler.step_deg, start_s=start)
     # Over one whole orbit a fly-around or a hover comes back to its start: leave the
     # repeated view out.
-    closed = scenario.observer.mode in ("fly_around", "hover") and sampler.duration_s is None
+    closed = isinstance(request.observer.motion, FlyAround | Hover) and sampler.duration_s is None
     if sampler.frame_count is not None and sampler.frame_count > 1 and closed:
         return sspt_times_s(start, end, frame_count=sampler.frame_count, include_end=False)
     return sspt_times_s(start, end, frame_count=sampler.frame_count, step_s=sampler.step_s)
@@ -238,21 +255,21 @@ def _match_energy(
 
 
 def _observer_initial_state(
-    scenario: Scenario, r0: np.ndarray, v0: np.ndarray, elements: OrbitalElements
+    request: OrbitalPlanRequest, r0: np.ndarray, v0: np.ndarray, elements: OrbitalElements
 ) -> tuple[np.ndarray, np.ndarray]:
     """The observer's inertial state at the epoch for a natural-motion mode."""
-    observer = scenario.observer
+    motion = request.observer.motion
     n = _mean_motion_rad_s(elements)
-    j2 = scenario.propagation.j2
-    if observer.mode == "elements":
-        return state_from_elements(observer.orbit.build())
-    if observer.mode == "hover":
+    j2 = request.propagation.j2
+    if isinstance(motion, OwnElements):
+        return state_from_elements(motion.elements)
+    if isinstance(motion, Hover):
         # Same orbit, earlier (behind) or later (ahead) by the angle whose chord is the range.
         radius = float(np.linalg.norm(r0))
-        if observer.range_km * 1e3 >= 2.0 * radius:
+        if motion.range_m >= 2.0 * radius:
             raise SatsightError("hover range_km exceeds the target orbit's diameter")
-        shift = 2.0 * math.asin(observer.range_km * 1e3 / (2.0 * radius))
-        sign = -1.0 if observer.side == "behind" else 1.0
+        shift = 2.0 * math.asin(motion.range_m / (2.0 * radius))
+        sign = -1.0 if motion.side == "behind" else 1.0
         shifted = OrbitalElements(
             elements.semi_major_axis_m,
             elements.eccentricity,
@@ -263,29 +280,25 @@ def _observer_initial_state(
         )
         r, v = state_from_elements(shifted)
         return r, _match_energy(r, v, r0, v0, j2)
-    if observer.mode == "fly_around":
-        rho, rho_dot = rm.fly_around_initial_state(
-            observer.radius_km * 1e3, n, phase_rad=math.radians(observer.phase_deg)
-        )
+    if isinstance(motion, FlyAround):
+        rho, rho_dot = rm.fly_around_initial_state(motion.radius_m, n, phase_rad=motion.phase_rad)
         r, v = inertial_from_relative_rtn(r0, v0, rho, rho_dot)
         return r, _match_energy(r, v, r0, v0, j2)
-    if observer.mode == "fly_by":
+    if isinstance(motion, FlyBy):
         rho, rho_dot = rm.fly_by_initial_state(
-            observer.miss_distance_km * 1e3, observer.start_along_track_km * 1e3, n
+            motion.miss_distance_m, motion.start_along_track_m, n
         )
         return inertial_from_relative_rtn(r0, v0, rho, rho_dot)
-    if observer.mode == "relative_rtn":
-        rho = np.asarray(observer.position_rtn_km, dtype=np.float64) * 1e3
-        rho_dot = np.asarray(observer.velocity_rtn_m_s, dtype=np.float64)
-        return inertial_from_relative_rtn(r0, v0, rho, rho_dot)
-    raise SatsightError(f"observer mode {observer.mode!r} is not a natural-motion mode")
+    if isinstance(motion, RelativeRtn):
+        return inertial_from_relative_rtn(r0, v0, motion.position_rtn_m, motion.velocity_rtn_m_s)
+    raise SatsightError(f"observer motion {type(motion).__name__} is not natural motion")
 
 
 def _target_attitude(
-    scenario: Scenario, r: np.ndarray, v: np.ndarray, times_s: np.ndarray
+    request: OrbitalPlanRequest, r: np.ndarray, v: np.ndarray, times_s: np.ndarray
 ) -> np.ndarray:
-    attitude = scenario.attitude
-    q_ref = attitude.q_ref_from_body_unit
+    attitude = request.attitude
+    q_ref = attitude.q_ref_from_body
     if attitude.law == "lvlh_fixed":
         return lvlh_fixed_attitude(r, v, q_ref)
     if attitude.law == "inertial":
@@ -293,33 +306,21 @@ def _target_attitude(
     return spinning_attitude(q_ref, attitude.rate_body_rad_s, times_s)
 
 
-def _rssf_intervals(scenario: Scenario) -> tuple[DistanceInterval, ...]:
-    sampler = scenario.sampler
-    intervals = [
-        DistanceInterval(far_m=far * 1e3, near_m=near * 1e3, name=f"{far:g}-{near:g} km")
-        for far, near in sampler.intervals_km
-    ]
-    if sampler.include_hover:
-        hover = sampler.hover_range_km * 1e3
-        intervals.append(
-            DistanceInterval(far_m=hover, near_m=hover, name=f"hover {sampler.hover_range_km:g} km")
-        )
-    return tuple(intervals)
-
-
-def _trajectory_states(source, scenario: Scenario, times_s: np.ndarray):
+def _trajectory_states(
+    states: TrajectoryStates, request: OrbitalPlanRequest, times_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """GCRS positions (N, 3), m, and velocities (N, 3), m/s, of a TLE/OMM (SGP4) or OEM
-    (interpolated) trajectory at ``times_s`` (N,) s after the scenario epoch."""
-    return source.load().state_gcrs(epoch_times(scenario.epoch_utc, times_s))
+    (interpolated) trajectory at ``times_s`` (N,) s after the request's epoch."""
+    return states.state_gcrs(epoch_times(request.epoch_utc, times_s))
 
 
-def _target_start(scenario: Scenario) -> tuple[np.ndarray, np.ndarray, OrbitalElements]:
+def _target_start(request: OrbitalPlanRequest) -> tuple[np.ndarray, np.ndarray, OrbitalElements]:
     """The target's GCRS state at the epoch and its osculating elements there."""
-    if scenario.orbit is not None:
-        elements = scenario.orbit.build()
+    if request.target.elements is not None:
+        elements = request.target.elements
         r0, v0 = state_from_elements(elements)
         return r0, v0, elements
-    r, v = _trajectory_states(scenario.trajectory, scenario, np.zeros(1))
+    r, v = _trajectory_states(request.target.states, request, np.zeros(1))
     return r[0], v[0], elements_from_state(r[0], v[0])
 
 
@@ -341,16 +342,16 @@ class _Flight:
     interval_names: tuple[str, ...] | None  # None: named from the ranges
 
 
-def _rssf_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
-    sampler = scenario.sampler
-    r0, v0, _ = _target_start(scenario)
+def _rssf_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Flight:
+    sampler = request.sampler
+    r0, v0, _ = _target_start(request)
     count = sampler.frame_count
     times = np.zeros(count)
     r_t, v_t = np.tile(r0, (count, 1)), np.tile(v0, (count, 1))
-    q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
+    q_gcrs_from_body = _target_attitude(request, r_t, v_t, times)
     samples = rssf_samples(
         count,
-        _rssf_intervals(scenario),
+        sampler.intervals,
         np.random.default_rng(sampler.seed),
         sampler.distance_distribution,
     )
@@ -366,16 +367,17 @@ def _rssf_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
     )  # fmt: skip
 
 
-def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
+def _sspt_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Flight:
     # From elements (orbit) the target is propagated; from a TLE/OMM (SGP4) or an OEM it
     # follows that trajectory, and the relative modes start from its state at the epoch.
-    r0, v0, elements = _target_start(scenario)
-    from_elements = scenario.orbit is not None
-    prop = scenario.propagation
-    sampler, observer = scenario.sampler, scenario.observer
+    r0, v0, elements = _target_start(request)
+    from_elements = request.target.elements is not None
+    prop = request.propagation
+    sampler, observer = request.sampler, request.observer
+    motion = observer.motion
 
     # J2 about the true pole needs the epoch; without one the GCRS z axis stands in.
-    true_pole = prop.j2_axis == "true_pole" and scenario.epoch_utc is not None
+    true_pole = prop.j2_axis == "true_pole" and request.epoch_utc is not None
 
     def fly(r_start: np.ndarray, v_start: np.ndarray, times: np.ndarray):
         return propagate(
@@ -385,43 +387,43 @@ def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
             j2=prop.j2,
             method=prop.method,
             step_s=prop.step_s,
-            epoch=scenario.epoch_utc if true_pole else None,
+            epoch=request.epoch_utc if true_pole else None,
             j2_axis="true_pole" if true_pole else "gcrs_z",
             max_zonal_degree=prop.max_zonal_degree,
         )
 
-    times = _sspt_times(scenario)
+    times = _sspt_times(request)
     if from_elements:
         r_t, v_t = fly(r0, v0, times)
     else:
-        r_t, v_t = _trajectory_states(scenario.trajectory, scenario, times)
-    q_gcrs_from_body = _target_attitude(scenario, r_t, v_t, times)
+        r_t, v_t = _trajectory_states(request.target.states, request, times)
+    q_gcrs_from_body = _target_attitude(request, r_t, v_t, times)
     center = r_t + matrix_from_quaternion(q_gcrs_from_body) @ center_body
-    if observer.mode == "approach":
+    if isinstance(motion, Approach):
         # The spiral spans the whole approach, whatever the frames sample of it.
-        end = sampler.start_s + (sampler.duration_s or natural_span_s(scenario))
+        end = sampler.start_s + (sampler.duration_s or _natural_span_s(request))
         rho, rho_dot = rm.spiral_approach(
             np.append(times, end),
-            observer.start_range_km * 1e3,
-            observer.end_range_km * 1e3,
+            motion.start_range_m,
+            motion.end_range_m,
             _mean_motion_rad_s(elements),
-            revolutions=observer.revolutions,
-            via_ranges_m=observer.via_ranges_m(),
+            revolutions=motion.revolutions,
+            via_ranges_m=motion.via_ranges_m,
         )
         # About the box centre, so the ranges are exactly the spiral's.
         r_obs, v_obs = inertial_from_relative_rtn(center, v_t, rho[:-1], rho_dot[:-1])
-    elif observer.mode in ABSOLUTE_TRAJECTORY_MODES:
-        r_obs, v_obs = _trajectory_states(observer, scenario, times)
+    elif isinstance(motion, OwnTrajectory):
+        r_obs, v_obs = _trajectory_states(motion.states, request, times)
     else:
-        r_obs, v_obs = fly(*_observer_initial_state(scenario, r0, v0, elements), times)
-        if not from_elements and observer.mode != "elements":
+        r_obs, v_obs = fly(*_observer_initial_state(request, r0, v0, elements), times)
+        if not from_elements and not isinstance(motion, OwnElements):
             # The natural relative motion comes from both spacecraft flown with the same
             # dynamics from the target's state at the epoch; it is carried, in RTN, onto the
             # target's real (SGP4 / OEM) trajectory, whose own dynamics differ from ours and
             # would otherwise pull the pair apart by kilometres per orbit.
             rho, rho_dot = relative_rtn(*fly(r0, v0, times), r_obs, v_obs)
             r_obs, v_obs = inertial_from_relative_rtn(r_t, v_t, rho, rho_dot)
-    roll_rad = np.full(len(times), math.radians(observer.roll_deg))
+    roll_rad = np.full(len(times), observer.roll_rad)
     return _Flight(
         times, r_t, v_t, q_gcrs_from_body, center, r_obs, v_obs, r_obs, v_obs,
         observer.camera_roll, roll_rad, None,
@@ -429,17 +431,17 @@ def _sspt_flight(scenario: Scenario, center_body: np.ndarray) -> _Flight:
 
 
 def _orbital_track(
-    scenario: Scenario, center_body: np.ndarray, chunk_frames: int = PLAN_CHUNK_FRAMES
+    request: OrbitalPlanRequest, center_body: np.ndarray, chunk_frames: int = PLAN_CHUNK_FRAMES
 ) -> PoseTrack:
-    if scenario.sampler.kind == "rssf":
-        flight = _rssf_flight(scenario, center_body)
+    if isinstance(request.sampler, RssfSampler):
+        flight = _rssf_flight(request, center_body)
     else:
-        flight = _sspt_flight(scenario, center_body)
+        flight = _sspt_flight(request, center_body)
     n = len(flight.times_s)
     if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, int) or chunk_frames < 1:
         raise SatsightError(f"chunk_frames must be a whole number >= 1, got {chunk_frames!r}")
-    keep = scenario.visibility.on_fail == "keep"
-    limits = scenario.visibility.limits()
+    keep = request.visibility.on_fail == "keep"
+    limits = request.visibility.limits
     columns = {name: np.empty((n, 4)) for name in ("q_cam_from_body", "q_cam_from_gcrs")}
     for name in ("t_cam_from_body_m", "rho_rtn_m", "sun_from_target_cam",
                  "earth_from_target_cam", "moon_from_target_cam"):  # fmt: skip
@@ -457,7 +459,7 @@ def _orbital_track(
     # arrays of one chunk (the Earth's orientation needs ~22 kB a frame while it is computed).
     for start in range(0, n, chunk_frames):
         frames = slice(start, min(n, start + chunk_frames))
-        epochs += _plan_chunk(scenario, flight, frames, columns, limits, keep)
+        epochs += _plan_chunk(request, flight, frames, columns, limits, keep)
     r_obs, v_obs, times = flight.r_camera_m, flight.v_camera_m_s, flight.times_s
     interval_names = flight.interval_names
     del flight  # the target's states and attitude are no longer needed
@@ -479,7 +481,7 @@ def _orbital_track(
 
 
 def _plan_chunk(
-    scenario: Scenario,
+    request: OrbitalPlanRequest,
     flight: _Flight,
     frames: slice,
     columns: dict[str, np.ndarray],
@@ -490,12 +492,12 @@ def _plan_chunk(
     times = flight.times_s[frames]
     r_t, v_t = flight.r_target_m[frames], flight.v_target_m_s[frames]
     center, r_obs = flight.center_m[frames], flight.r_camera_m[frames]
-    instants = epoch_times(scenario.epoch_utc, times)
+    instants = epoch_times(request.epoch_utc, times)
     # The Earth's orientation per frame: the WGS-84 ellipsoid for the inside-the-Earth test,
     # occultation and shadow.
     # (Nutation costs ~70 us an instant; RSSF frames all share one.)
     unique_times, inverse = np.unique(times, return_inverse=True)
-    unique_instants = epoch_times(scenario.epoch_utc, unique_times)
+    unique_instants = epoch_times(request.epoch_utc, unique_times)
     R_itrs = R_itrs_from_gcrs(unique_instants)[inverse]
     buried = np.flatnonzero(np.atleast_1d(inside_earth(r_obs, R_itrs)))
     if buried.size:
