@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
-from satsight.config.scenario import EARTH_RADIUS_M
+from satsight.constants import EARTH_MEAN_RADIUS_M
 from satsight.errors import SatsightError
 from satsight.lighting.bodies import environment_light_field
 from satsight.lighting.light_field import LightField
@@ -47,7 +47,7 @@ RADIATIVE_STAGES = {
 def _light() -> LightField:
     """Sun plus earthshine for a target 500 km above the day side (Earth along -z)."""
     sun = _SUN_DIRECTION / np.linalg.norm(_SUN_DIRECTION)
-    earth = -(EARTH_RADIUS_M + 500e3) * np.array([0.0, 0.0, 1.0])
+    earth = -(EARTH_MEAN_RADIUS_M + 500e3) * np.array([0.0, 0.0, 1.0])
     return environment_light_field(sun, _SUN_W_M2, earth_center_from_target_m=earth)
 
 

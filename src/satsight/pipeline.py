@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
-from satsight.config.scenario import CameraConfig, Scenario, TargetConfig
+from satsight.config.camera import CameraConfig
+from satsight.config.scenario import Scenario, TargetConfig
 from satsight.constants import (
     DEFAULT_BAND_NM,
     EARTH_ALBEDO,

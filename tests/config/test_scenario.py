@@ -12,15 +12,10 @@ import yaml
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.cli import example_scenario_path
-from satsight.config.scenario import (
-    EARTH_RADIUS_M,
-    CameraConfig,
-    FrameConfig,
-    Scenario,
-    SunConfig,
-    load_scenario,
-    parse_scenario,
-)
+from satsight.config.camera import CameraConfig
+from satsight.config.lighting import SunConfig
+from satsight.config.scenario import FrameConfig, Scenario, load_scenario, parse_scenario
+from satsight.constants import EARTH_MEAN_RADIUS_M
 from satsight.errors import SatsightError
 from satsight.scene.procedural import SATELLITE_CLASSES
 
@@ -276,7 +271,7 @@ def test_earth_and_moon_positions_in_metres() -> None:
         )
     )
     earth = scenario.earth.center_from_target_m()
-    np.testing.assert_allclose(earth, [0.0, 0.0, -(EARTH_RADIUS_M + 5e5)], atol=1e-6)
+    np.testing.assert_allclose(earth, [0.0, 0.0, -(EARTH_MEAN_RADIUS_M + 5e5)], atol=1e-6)
     np.testing.assert_allclose(scenario.moon.center_from_target_m(), [0, 3.844e8, 0], atol=1e-3)
 
 

@@ -1,8 +1,10 @@
 """The scenario file: what the user asks satsight to render.
 
-A scenario is YAML validated by the pydantic models below. Non-SI units appear only here,
-and always in the key's name (``distance_km``, ``azimuth_deg``, ``pixel_pitch_um``).
-Unknown keys are errors, so a typo never silently falls back to a default.
+A scenario is YAML validated by the pydantic models below and by those of its sections
+(``config.camera``, ``config.lighting``, ``config.orbital``, ``config.sensor``,
+``config.target``, ``config.outputs``). Non-SI units appear only in config, and always in
+the key's name (``distance_km``, ``azimuth_deg``, ``pixel_pitch_um``). Unknown keys are
+errors, so a typo never silently falls back to a default.
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ from pydantic import (
     model_validator,
 )
 
-from satsight.camera.pinhole import CAMERA_PRESETS, PinholeCamera
+from satsight.config.camera import CameraConfig
+from satsight.config.lighting import EarthConfig, MoonConfig, SunConfig
 from satsight.config.orbital import (
     ABSOLUTE_TRAJECTORY_MODES,
     TRAJECTORY_KEYS,
@@ -38,22 +41,21 @@ from satsight.config.orbital import (
 )
 from satsight.config.outputs import OutputsConfig
 from satsight.config.plan_request import check_sspt_size, orbital_plan_request
-from satsight.config.sensor import DetectorConfig, ExposureConfig, OpticsConfig, StarsConfig
+from satsight.config.sensor import StarsConfig
 from satsight.config.target import (  # noqa: F401 (re-exported: the scenario's sections)
     KeypointsConfig,
     MeshTargetConfig,
     ProceduralTargetConfig,
     TargetConfig,
 )
+from satsight.config.validation_errors import format_validation_error
 from satsight.config.yaml_safety import load_yaml_file
-from satsight.constants import AU_M, DEFAULT_BAND_NM
+from satsight.constants import AU_M
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
 from satsight.frames.rigid import RigidTransform
-from satsight.lighting.solar_spectrum import SPECTRA, band_irradiance_w_m2
 from satsight.poses.plan_request import PlanRequest, ViewsPlanRequest
-from satsight.poses.views import View, direction_from_angles
-from satsight.render.buffers import SunLight
+from satsight.poses.views import View
 from satsight.render.settings import (
     BRDF_MODELS,
     ENVIRONMENT_MODES,
@@ -62,163 +64,10 @@ from satsight.render.settings import (
     SUN_REPRESENTATIONS,
     RenderSettings,
 )
-from satsight.sensor.detector import DetectorParameters
-from satsight.sensor.optics import Optics
-
-EARTH_RADIUS_M = 6_371_008.8  # mean radius, IUGG (Moritz 2000, Geodetic Reference System 1980)
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class FarCameraConfig(_Strict):
-    """The second mode of a dual-mode camera (the paper switches from the wide-field to the
-    high-resolution camera at 20 km): frames whose range to the target's box centre is
-    beyond ``switch_range_km`` are taken with ``preset``'s focal length and optics, on the
-    same detector (pixel pitch, image size, fixed pattern, exposure rule)."""
-
-    preset: Literal["high_resolution", "wide_field"] = "wide_field"
-    switch_range_km: float = Field(gt=0)
-
-
-class CameraConfig(_Strict):
-    """Camera: a preset, optionally with any of its values overridden, and its sensor.
-
-    ``seed`` fixes the detector's fixed pattern (PRNU and DSNU maps): one camera, one seed.
-    ``far``: a second camera mode for frames beyond a range (``FarCameraConfig``).
-    """
-
-    preset: Literal["high_resolution", "wide_field"] = "high_resolution"
-    focal_length_m: float | None = Field(default=None, gt=0)
-    pixel_pitch_um: float | None = Field(default=None, gt=0)
-    width_px: int | None = Field(default=None, ge=1, le=32768)
-    height_px: int | None = Field(default=None, ge=1, le=32768)
-    optics: OpticsConfig = OpticsConfig()
-    detector: DetectorConfig = DetectorConfig()
-    exposure: ExposureConfig = ExposureConfig()
-    seed: int = Field(default=0, ge=0)
-    far: FarCameraConfig | None = None
-
-    def far_mode(self) -> CameraConfig | None:
-        """The camera of the far frames: this one with the far preset's focal length and
-        optics (None without a ``far`` mode)."""
-        if self.far is None:
-            return None
-        return self.model_copy(
-            update={
-                "preset": self.far.preset,
-                "focal_length_m": None,
-                "optics": OpticsConfig(),
-                "far": None,
-            }
-        )
-
-    @model_validator(mode="after")
-    def _sensor_fits(self) -> CameraConfig:
-        try:
-            self.build_optics()
-        except SatsightError as error:
-            raise ValueError(str(error)) from None
-        return self
-
-    def build_optics(self) -> Optics:
-        return self.optics.build(self.preset, self.build().focal_length_m)
-
-    def build_detector(self) -> DetectorParameters:
-        return self.detector.build(self.build().pixel_pitch_m)
-
-    def build(self) -> PinholeCamera:
-        base = CAMERA_PRESETS[self.preset]()
-        return PinholeCamera(
-            focal_length_m=self.focal_length_m or base.focal_length_m,
-            pixel_pitch_m=(self.pixel_pitch_um * 1e-6)
-            if self.pixel_pitch_um
-            else base.pixel_pitch_m,
-            width_px=self.width_px or base.width_px,
-            height_px=self.height_px or base.height_px,
-        )
-
-
-def _direction(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
-    return direction_from_angles(math.radians(azimuth_deg), math.radians(elevation_deg))
-
-
-class SunConfig(_Strict):
-    """Sun direction (from the target) in the body frame, and its in-band irradiance.
-
-    The irradiance is the solar spectrum integrated over ``band_nm`` at ``distance_au``
-    unless ``irradiance_w_m2`` gives it directly.
-    """
-
-    azimuth_deg: float = 45.0
-    elevation_deg: float = Field(default=30.0, ge=-90, le=90)
-    spectrum: Literal[SPECTRA] = "astm_e490"
-    band_nm: tuple[float, float] = DEFAULT_BAND_NM
-    distance_au: float = Field(default=1.0, gt=0)
-    irradiance_w_m2: float | None = Field(default=None, gt=0)
-
-    @model_validator(mode="after")
-    def _band_order(self) -> SunConfig:
-        lo, hi = self.band_nm
-        if not (0 < lo < hi):
-            raise ValueError(f"band_nm must be [lo, hi] with 0 < lo < hi, got {list(self.band_nm)}")
-        return self
-
-    @property
-    def in_band_irradiance_w_m2(self) -> float:
-        if self.irradiance_w_m2 is not None:
-            return self.irradiance_w_m2
-        return band_irradiance_w_m2(self.band_nm, self.spectrum, self.distance_au)
-
-    def build(self) -> SunLight:
-        return SunLight(
-            _direction(self.azimuth_deg, self.elevation_deg), self.in_band_irradiance_w_m2
-        )
-
-
-class EarthConfig(_Strict):
-    """The Earth seen from the target: direction of its centre (body frame), altitude of
-    the target above the mean sphere, and a Lambertian albedo (scalar or per channel; the
-    SH light field's, and the body's with ``surface: uniform``), its surface (albedo map or
-    uniform) and shape (WGS-84 ellipsoid or sphere) as a body in the scene."""
-
-    azimuth_deg: float = 0.0
-    elevation_deg: float = Field(default=-90.0, ge=-90, le=90)
-    altitude_km: float = Field(default=500.0, gt=0, le=1e6)
-    albedo: float | tuple[float, float, float] = 0.30
-    # The Earth as a body in the scene (satsight.lighting.scene_bodies / earth_surface):
-    # "map" = land, ocean, ice and seeded clouds (mean 0.30); "uniform" = ``albedo``.
-    surface: Literal["map", "uniform"] = "map"
-    shape: Literal["wgs84", "sphere"] = "wgs84"
-    cloud_fraction: float = Field(default=0.67, ge=0.0, le=1.0)
-    cloud_seed: int = Field(default=0, ge=0)
-
-    def albedo_map(self):
-        """The surface albedo map, or None for a uniform Earth."""
-        if self.surface == "uniform":
-            return None
-        from satsight.lighting.earth_surface import EarthSurfaceModel, earth_albedo_map
-
-        return earth_albedo_map(
-            EarthSurfaceModel(cloud_fraction=self.cloud_fraction, cloud_seed=self.cloud_seed)
-        )
-
-    def center_from_target_m(self) -> np.ndarray:
-        distance_m = EARTH_RADIUS_M + self.altitude_km * 1e3
-        return distance_m * _direction(self.azimuth_deg, self.elevation_deg)
-
-
-class MoonConfig(_Strict):
-    """The Moon seen from the target: direction of its centre (body frame), distance, albedo."""
-
-    azimuth_deg: float = 0.0
-    elevation_deg: float = Field(default=0.0, ge=-90, le=90)
-    distance_km: float = Field(default=384_400.0, gt=2000)
-    albedo: float | tuple[float, float, float] = 0.12
-
-    def center_from_target_m(self) -> np.ndarray:
-        return self.distance_km * 1e3 * _direction(self.azimuth_deg, self.elevation_deg)
 
 
 #: How far from 1 a given q_cam_from_body's norm may be (it is then normalised).
@@ -559,37 +408,6 @@ def _resolve_trajectory_files(data: object, folder: Path) -> object:
     return out
 
 
-_MAX_LISTED_ERRORS = 50  # a file of 100 000 wrong values gets a page of them, not a flood
-_MAX_SHOWN_CHARS = 200  # a value shown after "got" is cut to this many characters
-
-
-def _shown(value: object) -> str:
-    text = repr(value)
-    return text if len(text) <= _MAX_SHOWN_CHARS else text[: _MAX_SHOWN_CHARS - 3] + "..."
-
-
-def _format_validation_error(error: ValidationError, source: str) -> str:
-    lines = [f"{source}: the scenario is not valid:"]
-    items = error.errors()
-    for item in items[:_MAX_LISTED_ERRORS]:
-        where = ".".join(str(p) for p in item["loc"]) or "(top level)"
-        message = item["msg"].removeprefix("Value error, ")
-        if item["type"] == "extra_forbidden":
-            message = "unknown key (check the spelling; see examples for valid keys)"
-        elif item["type"] == "missing":
-            message = "required key is missing"
-        got = item.get("input")
-        suffix = (
-            ""
-            if item["type"] in ("missing", "extra_forbidden") or isinstance(got, dict)
-            else f" (got {_shown(got)})"
-        )
-        lines.append(f"  - {where}: {message}{suffix}")
-    if len(items) > _MAX_LISTED_ERRORS:
-        lines.append(f"  ... and {len(items) - _MAX_LISTED_ERRORS} more")
-    return "\n".join(lines)
-
-
 def parse_scenario(data: object, source: str = "scenario") -> Scenario:
     """Validate a parsed YAML/JSON object as a Scenario, with messages naming bad keys."""
     if not isinstance(data, dict):
@@ -597,7 +415,7 @@ def parse_scenario(data: object, source: str = "scenario") -> Scenario:
     try:
         return Scenario.model_validate(data)
     except ValidationError as error:
-        raise SatsightError(_format_validation_error(error, source)) from None
+        raise SatsightError(format_validation_error(error, source)) from None
 
 
 def load_scenario(path: str | Path) -> Scenario:
