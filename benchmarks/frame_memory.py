@@ -28,7 +28,7 @@ import json, sys, time
 from pathlib import Path
 from satsight.api import load_scenario
 from satsight.cli import example_scenario_path
-from satsight.generation import generate_dataset
+from satsight.run.generation import generate_dataset
 
 size, outputs, out = int(sys.argv[1]), sys.argv[2].split(","), Path(sys.argv[3])
 frames = [{"distance_km": 0.8, "azimuth_deg": 20.0 + 30.0 * k, "elevation_deg": 25.0}

@@ -3,7 +3,7 @@
 ``write_box_dataset`` builds one by hand, without the renderer: the target is a box off
 the body origin, and its mask and depth come from an exact ray-box intersection through
 each pixel centre, so every label is known in closed form. ``render_tiny_dataset``
-renders a procedural satellite with ``satsight.generation.generate_dataset``.
+renders a procedural satellite with ``satsight.run.generation.generate_dataset``.
 """
 
 from __future__ import annotations
@@ -223,7 +223,7 @@ def tiny_scenario_dict() -> dict:
 def render_tiny_dataset(root: Path) -> Path:
     """Render the tiny scenario into ``root`` (a complete dataset); return ``root``."""
     from satsight.config.scenario import parse_scenario
-    from satsight.generation import generate_dataset
+    from satsight.run.generation import generate_dataset
 
     generate_dataset(parse_scenario(tiny_scenario_dict(), "test"), root)
     assert (root / "manifest.json").is_file() and (root / "complete.json").is_file()

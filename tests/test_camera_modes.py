@@ -12,7 +12,7 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.reader import open_dataset
 from satsight.dataset.validate import validate_dataset
-from satsight.generation import generate_dataset
+from satsight.run.generation import generate_dataset
 
 SIZE_PX = 96
 SCENARIO = {

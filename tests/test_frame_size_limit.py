@@ -161,7 +161,7 @@ import sys
 from pathlib import Path
 from satsight.api import load_scenario
 from satsight.cli import example_scenario_path
-from satsight.generation import generate_dataset
+from satsight.run.generation import generate_dataset
 frames = [{"distance_km": 0.8, "azimuth_deg": 20.0 + 30.0 * k, "elevation_deg": 25.0}
           for k in range(5)]
 size = int(sys.argv[1])

@@ -270,7 +270,9 @@ def generate(
     committed frames and never leaves a half-written one; ``resume=True`` finishes it.
     The first Ctrl-C finishes the frames in flight, then raises KeyboardInterrupt.
     """
-    from satsight.generation import Shard, StopFlag, generate_dataset, stop_on_sigint
+    from satsight.run.generation import generate_dataset
+    from satsight.run.interrupt import StopFlag, stop_on_sigint
+    from satsight.run.shard import Shard
 
     if overwrite and resume:
         raise SatsightError("give overwrite=True or resume=True, not both")

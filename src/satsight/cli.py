@@ -2,7 +2,7 @@
 camera | ablate | bench | satellite | materials | fit-brdf |
 lightcurve``.
 
-A thin shell over ``satsight.generation``, ``satsight.dataset`` and the other stages, its
+A thin shell over ``satsight.run``, ``satsight.dataset`` and the other stages, its
 commands in ``satsight.commands``: user errors print a message and exit with status 2,
 never a traceback; a run stopped by Ctrl-C exits with 130 after saying how to resume it.
 """

@@ -60,7 +60,7 @@ def run_case(size_px: tuple[int, int], outputs: str, frames: int, out_dir: Path)
     import resource
 
     from satsight.config.scenario import parse_scenario
-    from satsight.generation import generate_dataset
+    from satsight.run.generation import generate_dataset
 
     scenario = parse_scenario(_scenario(size_px, outputs, frames), "benchmark")
     commits: list[float] = []

@@ -1,7 +1,7 @@
 """One frame end to end: target -> pose -> light -> render -> labels -> sensor -> DN.
 
 ``FrameEngine`` holds what every frame of a scenario shares (mesh, plan, renderer and its
-compiled kernels, sensor) and makes one frame's record and arrays; ``satsight.generation``
+compiled kernels, sensor) and makes one frame's record and arrays; ``satsight.run``
 runs it over a dataset and writes the files.
 """
 

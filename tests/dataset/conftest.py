@@ -14,7 +14,7 @@ from synthetic_datasets import LARGE_FRAME_COUNT, write_synthetic_dataset
 def labels_only_template(tmp_path_factory) -> Path:
     """A real one-frame dataset without files (``outputs.files: []``), with a crop."""
     from satsight.config.scenario import parse_scenario
-    from satsight.generation import generate_dataset
+    from satsight.run.generation import generate_dataset
 
     scenario = tiny_scenario_dict()
     scenario.update(name="labels-only", frames=scenario["frames"][:1])

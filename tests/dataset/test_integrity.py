@@ -23,7 +23,8 @@ from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
 from satsight.dataset.lock import LOCK_NAME
 from satsight.dataset.validate import validate_dataset
-from satsight.generation import Shard, generate_dataset
+from satsight.run.generation import generate_dataset
+from satsight.run.shard import Shard
 
 FRAME_COUNT = 6
 

@@ -24,7 +24,7 @@ from satsight.dataset.stats import (
     histogram,
     write_stats,
 )
-from satsight.generation import generate_dataset
+from satsight.run.generation import generate_dataset
 from synthetic_datasets import LARGE_FRAME_COUNT, held_records_bytes
 
 FRAME_COUNT = 14  # two per distance interval: six approach intervals and the hover

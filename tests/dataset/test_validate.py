@@ -27,7 +27,7 @@ from satsight.dataset.problems import MAX_KEPT_PROBLEMS
 from satsight.dataset.validate import validate_dataset
 from satsight.dataset.validation_report import ValidationReport
 from satsight.errors import SatsightError
-from satsight.generation import generate_dataset
+from satsight.run.generation import generate_dataset
 from synthetic_datasets import LARGE_FRAME_COUNT, held_records_bytes, write_synthetic_dataset
 
 FRAME_COUNT = 4

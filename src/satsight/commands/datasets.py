@@ -34,7 +34,9 @@ def _generate(
 
     from satsight.config.outputs import parse_outputs_option
     from satsight.config.scenario import load_scenario, parse_scenario
-    from satsight.generation import Shard, StopFlag, generate_dataset, stop_on_sigint
+    from satsight.run.generation import generate_dataset
+    from satsight.run.interrupt import StopFlag, stop_on_sigint
+    from satsight.run.shard import Shard
 
     scenario = load_scenario(config_path)
     if outputs is not None or crop_px is not None:
@@ -163,7 +165,7 @@ def generate(
     if workers is not None and scheduler is not None:
         raise SatsightError("give --workers or --scheduler, not both")
     if scheduler is not None:
-        from satsight.distributed import scheduler_address
+        from satsight.run.distributed import scheduler_address
 
         scheduler = scheduler_address(scheduler)  # at once, before the scenario loads
     _generate(config, out_dir, overwrite, resume, shard, workers, scheduler, outputs, crop_px)

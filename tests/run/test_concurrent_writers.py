@@ -24,7 +24,7 @@ from satsight.dataset.journal import read_journal
 from satsight.dataset.lock import LOCK_NAME, WriterLock
 from satsight.dataset.validate import validate_dataset
 from satsight.errors import SatsightError
-from satsight.generation import generate_dataset
+from satsight.run.generation import generate_dataset
 
 FRAME_COUNT = 10
 REPEATS = 4
@@ -198,12 +198,12 @@ def test_ctrl_c_releases_the_lock(tmp_path: Path, scenario_file: Path) -> None:
 
 
 def test_an_error_releases_the_lock(tmp_path: Path, monkeypatch) -> None:
-    import satsight.generation as generation
+    import satsight.run.generation as generation
 
     def fail(*args, **kwargs):
         raise SatsightError("a failure in the middle of the run")
 
-    monkeypatch.setattr(generation, "_run_local", fail)
+    monkeypatch.setattr(generation, "run_local", fail)
     out = tmp_path / "dataset"
     with pytest.raises(SatsightError, match="a failure in the middle"):
         generate_dataset(parse_scenario(scenario_dict()), out)

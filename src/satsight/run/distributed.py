@@ -62,7 +62,7 @@ def _worker_engine(scenario_json: dict):
         _ENGINES.clear()  # one scenario at a time per process
         _ENGINES[key] = FrameEngine(parse_scenario(scenario_json, "scenario"))
     if not _ENCODERS:
-        from satsight.generation import ENCODER_THREADS
+        from satsight.run.frame_stages import ENCODER_THREADS
 
         _ENCODERS.append(ThreadPoolExecutor(ENCODER_THREADS))
     return _ENGINES[key]
@@ -70,7 +70,7 @@ def _worker_engine(scenario_json: dict):
 
 def render_frame_task(scenario_json: dict, root: str, frame_index: int, variant: str) -> dict:
     """Render and write one frame on a worker; its journal record."""
-    from satsight.generation import sense_frame, write_frame
+    from satsight.run.frame_stages import sense_frame, write_frame
 
     engine = _worker_engine(scenario_json)
     if engine.renderer.variant != variant:

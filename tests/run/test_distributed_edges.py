@@ -23,17 +23,17 @@ import pytest
 
 from cli_runner import run_satsight
 from dataset_files import file_hashes, write_scenario_yaml
-from satsight import distributed
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
-from satsight.distributed import (
+from satsight.errors import SatsightError
+from satsight.run import distributed
+from satsight.run.distributed import (
     _probe_scheduler,
     local_worker_cap,
     scheduler_address,
     worker_memory_bytes,
 )
-from satsight.errors import SatsightError
-from satsight.generation import generate_dataset
+from satsight.run.generation import generate_dataset
 
 dask_distributed = pytest.importorskip("dask.distributed")
 
@@ -311,7 +311,7 @@ def test_killing_the_workers_that_hold_the_scenario_loses_no_frame(
                 killed.extend(kill_scenario_holders(local))
 
         out = tmp_path / "dataset"
-        with caplog.at_level(logging.WARNING, logger="satsight.distributed"):
+        with caplog.at_level(logging.WARNING, logger="satsight.run.distributed"):
             summary = generate_dataset(
                 parse_scenario(scenario_dict()),
                 out,

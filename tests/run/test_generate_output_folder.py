@@ -21,14 +21,14 @@ class HeavyStageReached(AssertionError):
 @pytest.fixture(autouse=True)
 def no_heavy_stage(monkeypatch) -> None:
     """Make the frame engine (mesh, renderer, star catalogue, plan) fail if it is built."""
-    import satsight.generation
     import satsight.pipeline
+    import satsight.run.generation
 
     def refuse(*args, **kwargs):
         raise HeavyStageReached("the frame engine was built before the folder was checked")
 
     monkeypatch.setattr(satsight.pipeline, "FrameEngine", refuse)
-    monkeypatch.setattr(satsight.generation, "FrameEngine", refuse)
+    monkeypatch.setattr(satsight.run.generation, "FrameEngine", refuse)
 
 
 def fake_dataset(folder: Path, complete: bool) -> Path:
@@ -97,7 +97,7 @@ def test_bad_output_folder_fails_at_once_without_progress(
 
 def test_generate_dataset_checks_the_folder_before_building_the_engine(tmp_path: Path) -> None:
     from satsight.errors import SatsightError
-    from satsight.generation import generate_dataset
+    from satsight.run.generation import generate_dataset
 
     scenario = load_scenario(example_scenario_path())
     with pytest.raises(SatsightError, match="is not empty"):

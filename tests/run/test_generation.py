@@ -29,7 +29,9 @@ from satsight.dataset.preview import PreviewStretch, dn_preview_uint8
 from satsight.dataset.reader import open_dataset
 from satsight.dataset.validate import validate_dataset
 from satsight.errors import SatsightError
-from satsight.generation import Shard, StopFlag, generate_dataset
+from satsight.run.generation import generate_dataset
+from satsight.run.interrupt import StopFlag
+from satsight.run.shard import Shard
 
 FRAME_COUNT = 12
 WIDTH_PX, HEIGHT_PX = 128, 96

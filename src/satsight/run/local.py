@@ -1,0 +1,66 @@
+"""Frames rendered in this process: a three-stage pipeline (render, sensor, files) that
+keeps every core busy."""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from satsight.pipeline import FrameEngine
+from satsight.run.frame_stages import ENCODER_THREADS, sense_frame, write_frame
+from satsight.run.interrupt import StopFlag
+
+# Frames rendered but not yet committed: one being written, one in the sensor, one
+# rendering (about 0.5 GB each at 4096 x 4112).
+MAX_FRAMES_IN_FLIGHT = 3
+
+
+def run_local(
+    engine: FrameEngine,
+    root: Path,
+    todo: list[int],
+    commit: Callable[[dict], None],
+    stop: StopFlag,
+    times: dict[str, list[float]],
+) -> None:
+    """Render the frames of ``todo`` in this process as a three-stage pipeline: frame k+2
+    renders while frame k+1 goes through the sensor and frame k's files are encoded (on
+    ``ENCODER_THREADS`` threads), so that every core stays busy."""
+    with (
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-sensor") as sensor,
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-writer") as writer,
+        ThreadPoolExecutor(ENCODER_THREADS, thread_name_prefix="satsight-encode") as encoders,
+    ):
+        pending: deque = deque()
+
+        def commit_oldest() -> None:
+            record, stage = pending.popleft().result()
+            for name, seconds in stage.items():
+                times.setdefault(name, []).append(seconds)
+            commit(record)
+
+        def sense_then_write(sensed_future) -> tuple[dict, dict[str, float]]:
+            return write_frame(engine, root, sensed_future.result(), encoders)
+
+        try:
+            for frame_index in todo:
+                if stop.is_set():
+                    break
+                t0 = time.perf_counter()
+                frame = engine.render(frame_index)
+                times.setdefault("render", []).append(time.perf_counter() - t0)
+                sensed = sensor.submit(sense_frame, engine, frame)
+                pending.append(writer.submit(sense_then_write, sensed))
+                del frame, sensed
+                while len(pending) >= MAX_FRAMES_IN_FLIGHT:
+                    commit_oldest()
+            while pending:
+                commit_oldest()
+        except BaseException:
+            # Frames already in flight are committed if they finish; the error goes on.
+            for future in pending:
+                future.cancel()
+            raise
