@@ -32,7 +32,7 @@ def _with(**changes) -> dict:
 
 
 def _error(data: dict) -> str:
-    with pytest.raises(SatsightError) as info:
+    with pytest.raises(SatsightError, match=r"^test\.yaml: the scenario is not valid:\n") as info:
         parse_scenario(data, "test.yaml")
     return str(info.value)
 

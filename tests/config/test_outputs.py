@@ -20,5 +20,5 @@ def test_outputs_choose_the_stretch() -> None:
 
 @pytest.mark.parametrize("bad", [{"preview_stretch": "log"}, {"preview_softening_dn": 0}])
 def test_outputs_refuse_an_unknown_stretch_or_softening(bad: dict) -> None:
-    with pytest.raises(ValidationError):
+    with pytest.raises(ValidationError, match=next(iter(bad))):
         OutputsConfig(**bad)

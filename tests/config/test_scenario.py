@@ -34,7 +34,7 @@ def _minimal(**changes) -> dict:
 
 
 def _error_lines(data: object) -> str:
-    with pytest.raises(SatsightError) as info:
+    with pytest.raises(SatsightError, match=r"^test\.yaml: ") as info:
         parse_scenario(data, "test.yaml")
     return str(info.value)
 

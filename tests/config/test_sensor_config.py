@@ -5,7 +5,9 @@ from __future__ import annotations
 import copy
 
 import pytest
+import yaml
 
+from cli_runner import run_satsight
 from satsight.config.scenario import parse_scenario
 from satsight.errors import SatsightError
 from satsight.sensor.detector import DetectorParameters
@@ -72,7 +74,27 @@ def test_defocus_blur_reaches_the_built_optics_in_metres() -> None:
 def test_bad_sensor_values_name_the_key(camera, message) -> None:
     with pytest.raises(SatsightError, match=message.replace(".", r"\.")) as info:
         scenario(**camera)
-    assert "Traceback" not in str(info.value)
+    # One bad value, one message: a single line, or the heading and one line for the key.
+    lines = str(info.value).splitlines()
+    assert len(lines) == 1 or (lines[0] == "test: the scenario is not valid:" and len(lines) == 2)
+
+
+@pytest.mark.parametrize(
+    ("detector", "message"),
+    [
+        ({"adc_bits": 20}, "camera.detector.adc_bits"),  # refused by the key's bounds
+        ({"bias_dn": 70000}, "bias_dn must be in [0, 65535) DN"),  # by the detector model
+    ],
+)
+def test_a_bad_sensor_value_stops_the_command_with_a_message(tmp_path, detector, message) -> None:
+    data = copy.deepcopy(STATIC)
+    data["camera"] = {"detector": detector}
+    config = tmp_path / "bad_sensor.yaml"
+    config.write_text(yaml.safe_dump(data), encoding="utf-8")
+    result = run_satsight("plan", str(config), "--no-plots", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
 
 
 def test_stars_need_frames_planned_from_orbits() -> None:

@@ -134,7 +134,7 @@ def test_duplicate_key_names_the_key_and_both_lines(tmp_path: Path) -> None:
         "name: x\ncamera:\n  preset: wide_field\n  seed: 1\n" + VALID_TAIL + "camera:\n  seed: 2\n",
         encoding="utf-8",
     )
-    with pytest.raises(SatsightError) as info:
+    with pytest.raises(SatsightError, match="key 'camera' given twice") as info:
         load_scenario(path)
     assert str(info.value) == f"{path}: key 'camera' given twice, on lines 2 and 7; keep one"
 
@@ -253,7 +253,7 @@ def test_long_values_in_validation_messages_are_cut(tmp_path: Path) -> None:
         "name: [" + ", ".join(["x"] * 5000) + "]\nframes: [" + ", ".join(["1"] * 200) + "]\n",
         encoding="utf-8",
     )
-    with pytest.raises(SatsightError) as info:
+    with pytest.raises(SatsightError, match="the scenario is not valid:") as info:
         load_scenario(path)
     lines = str(info.value).splitlines()
     assert max(len(line) for line in lines) < 400

@@ -284,7 +284,7 @@ def test_track_copies_writable_arrays_and_adopts_read_only_owned_ones() -> None:
     view = np.arange(8.0)[::2]
     view.flags.writeable = False  # read-only, but a view of a writable base: copied
     assert not np.shares_memory(PoseTrack(**{**track.__dict__, "time_s": view}).time_s, view)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="read-only"):
         adopted.time_s[0] = 1.0
 
 
