@@ -14,7 +14,6 @@ from satsight.dataset.contact_sheet import (
     thumbnail_source,
 )
 from satsight.dataset.frame_files import FrameArrays, write_frame_files
-from satsight.dataset.preview import PreviewStretch
 from satsight.pipeline import FrameEngine, RenderedFrame
 
 # Threads that encode one frame's files (PNG and EXR encoders release the GIL).
@@ -44,7 +43,7 @@ def write_frame(
     """Write a sensed frame's files; its journal record and stage times (s)."""
     t0 = time.perf_counter()
     outputs = engine.scenario.outputs
-    preview = PreviewStretch.of_outputs(outputs)
+    preview = outputs.build_preview()
     record = sensed.record
     files, crop_files, checksums = write_frame_files(
         root,
