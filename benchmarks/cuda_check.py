@@ -13,10 +13,11 @@ the median seconds per 4096 x 4112 frame, which ``save`` prints for LLVM)::
 
 The scenes are a procedural satellite (256 x 256 px, Sun + earthshine) under four render
 settings: the Sun alone, the renderer's default (sampled earthshine and bodies, two
-bounces), unshadowed earthshine with one bounce, and 2 x 2 supersampling. The two backends run the same
-random streams, so a pixel agrees unless float rounding changes a branch: part id and
-depth to 1e-5, radiance to 1e-4 relative (``tests/render/test_backend.py`` uses the same
-tolerances where both variants are present).
+bounces), unshadowed earthshine with one bounce, and 2 x 2 supersampling. The two
+backends run the same random streams, so a pixel agrees unless float rounding changes a
+branch: part id and depth to 1e-5, radiance to 1e-4 relative
+(``tests/render/test_backend.py`` uses the same tolerances where both variants are
+present).
 """
 
 from __future__ import annotations
