@@ -23,7 +23,7 @@ demo: system-deps $(STAMP)
 
 test: system-deps $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist worksteal
 
 bench: system-deps $(STAMP)
 	$(BIN)/python benchmarks/render_bench.py
