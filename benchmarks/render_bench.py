@@ -4,7 +4,7 @@ Usage: python benchmarks/render_bench.py [--frames 5] [--sizes 1024x1024,4096x41
 Same as ``satsight bench``.
 """
 
-from satsight.benchmark import main
+from satsight.tools.render_benchmark import main
 
 if __name__ == "__main__":
     main()

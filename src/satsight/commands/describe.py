@@ -165,7 +165,7 @@ def lightcurve(config: Path, out_dir: Path, size_px: int, spp: int | None) -> No
     and its V-equivalent magnitude over time; write CSV."""
     from satsight.commands.shell import progress_bar
     from satsight.config.scenario import load_scenario
-    from satsight.lightcurve import plot_lightcurve, run_lightcurve, write_csv
+    from satsight.tools.lightcurve import plot_lightcurve, run_lightcurve, write_csv
 
     scenario = load_scenario(config)
     with progress_bar() as progress:

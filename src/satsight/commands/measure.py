@@ -72,9 +72,9 @@ def ablate(
     the *_mapped variants the heuristic mapping from the GGX parameters."""
     from rich.table import Table
 
-    from satsight.ablation import VARIANTS, fit_rows, run_ablation, write_csv, write_figure
     from satsight.config.scenario import load_scenario
     from satsight.dataset.staging import check_output_folder, staged_folder
+    from satsight.tools.ablation import VARIANTS, fit_rows, run_ablation, write_csv, write_figure
 
     scenario = load_scenario(config)
     check_output_folder(out_dir, overwrite)
@@ -192,11 +192,11 @@ def bench(
 ) -> None:
     """Time the render stage (or, with --dataset, whole datasets); prints JSON."""
     if dataset_frames is not None:
-        from satsight.dataset_benchmark import run_dataset_benchmark
+        from satsight.tools.dataset_benchmark import run_dataset_benchmark
 
         click.echo(json.dumps(run_dataset_benchmark(dataset_frames), indent=2))
         return
-    from satsight.benchmark import parse_sizes_px, run_render_benchmark
+    from satsight.tools.render_benchmark import parse_sizes_px, run_render_benchmark
 
     radiative = [] if radiative_sizes == "none" else parse_sizes_px(radiative_sizes)
     result = run_render_benchmark(

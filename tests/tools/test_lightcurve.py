@@ -25,7 +25,7 @@ from matplotlib.colors import to_rgba
 from cli_runner import run_satsight
 from figure_checks import figure_pixels, has_colour
 from satsight.config.scenario import parse_scenario
-from satsight.lightcurve import run_lightcurve
+from satsight.tools.lightcurve import run_lightcurve
 
 ALBEDO = 0.5
 SUN_W_M2 = 1000.0

@@ -101,7 +101,7 @@ def run_dataset_benchmark(
         for name, size_px, outputs in cases:
             out = Path(tmp) / name
             command = [
-                sys.executable, "-m", "satsight.dataset_benchmark", "--case",
+                sys.executable, "-m", "satsight.tools.dataset_benchmark", "--case",
                 f"{size_px[0]}x{size_px[1]}", outputs, str(frames), str(out),
             ]  # fmt: skip
             done = subprocess.run(command, capture_output=True, text=True, check=False)

@@ -13,7 +13,11 @@ import yaml
 from matplotlib.colors import to_rgba
 
 from figure_checks import figure_pixels, has_colour
-from satsight.ablation import (
+from satsight.camera.pinhole import PinholeCamera
+from satsight.cli import main
+from satsight.config.scenario import Scenario
+from satsight.errors import SatsightError
+from satsight.tools.ablation import (
     FITTED_VARIANTS,
     VARIANTS,
     ablation_camera,
@@ -21,10 +25,6 @@ from satsight.ablation import (
     image_metrics,
     run_ablation,
 )
-from satsight.camera.pinhole import PinholeCamera
-from satsight.cli import main
-from satsight.config.scenario import Scenario
-from satsight.errors import SatsightError
 
 
 def _image(rng, shape=(6, 5)) -> np.ndarray:
@@ -97,7 +97,7 @@ def ablation_run(tmp_path_factory) -> tuple[Path, dict[str, list[np.ndarray]]]:
         return result
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("satsight.ablation.run_ablation", keeping_images)
+        patch.setattr("satsight.tools.ablation.run_ablation", keeping_images)
         main(["ablate", str(config), "--out", str(out), "--spp", "32", "--reference-spp", "256",
               "--width", "48"])  # fmt: skip
     return out, images
