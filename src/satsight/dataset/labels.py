@@ -22,6 +22,7 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import RigidTransform
 from satsight.render.buffers import RadianceImage, SunLight
 from satsight.scene.mesh import TargetMesh
+from satsight.vectors import angle_between_rad
 
 #: Keypoint depth tolerance: KEYPOINT_DEPTH_ATOL_M + KEYPOINT_DEPTH_RTOL * depth.
 KEYPOINT_DEPTH_ATOL_M = 0.01
@@ -107,7 +108,7 @@ def frame_labels(
     center_cam = cam_from_body.apply(mesh.center_m)
     to_camera = -center_cam / np.linalg.norm(center_cam)
     sun_cam = cam_from_body.rotate(sun.direction_body)
-    phase = np.degrees(np.arccos(np.clip(np.dot(to_camera, sun_cam), -1.0, 1.0)))
+    phase = np.degrees(angle_between_rad(to_camera, sun_cam))
     count = int(mask.sum())
     border = mask[0, :].any() or mask[-1, :].any() or mask[:, 0].any() or mask[:, -1].any()
     return {

@@ -90,19 +90,11 @@ from satsight.poses.samplers import (
     sspt_times_s,
 )
 from satsight.poses.track import FLAG_FIELDS, PoseTrack
+from satsight.vectors import angle_between_rad
 
 # Frames planned together past the flight (see `_orbital_track`): the Earth's orientation
 # takes ~22 kB a frame while skyfield computes it, so a chunk holds ~100 MB at most.
 PLAN_CHUNK_FRAMES = 4096
-
-
-def _unit_rows(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _angle_rad(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    cos = np.sum(_unit_rows(a) * _unit_rows(b), axis=-1)
-    return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
 def plan_track(
@@ -178,10 +170,10 @@ def _views_track(request: ViewsPlanRequest, center: np.ndarray) -> PoseTrack:
         moon_distance_m=moon_dist,
         rho_rtn_m=nan3,
         range_m=range_m,
-        phase_angle_rad=_angle_rad(sun_cam, -center_cam),
+        phase_angle_rad=angle_between_rad(sun_cam, -center_cam),
         sunlit_fraction=np.ones(n),
         los_clearance_m=np.full(n, np.inf),
-        sun_boresight_angle_rad=_angle_rad(sun_cam, boresight),
+        sun_boresight_angle_rad=angle_between_rad(sun_cam, boresight),
         earth_occulted=no,
         eclipsed=no,
         sun_excluded=no,

@@ -48,6 +48,7 @@ from satsight.errors import SatsightError
 from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings
 from satsight.scene.mesh import TargetMesh
+from satsight.vectors import angle_between_rad
 
 VARIANTS: dict[str, dict] = {
     "improved_phong": {"brdf": "improved_phong"},
@@ -92,9 +93,7 @@ def image_metrics(reference: np.ndarray, image: np.ndarray) -> FrameMetrics:
     peak = float(ref.max())
     psnr = math.inf if mse == 0.0 else 10.0 * math.log10(peak * peak / mse)
     both = (ref_norm > 0) & (img_norm > 0)
-    # atan2(|a x b|, a . b) keeps small angles accurate, where arccos would not.
-    a, b = ref[both], img[both]
-    angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1)))
+    angle = np.degrees(angle_between_rad(ref[both], img[both]))
     return FrameMetrics(mse, psnr, float(angle.mean()) if angle.size else 0.0)
 
 
