@@ -1,8 +1,9 @@
 """satsight: physically based optical images of space objects with exact labels.
 
-The pipeline runs one way (see ``docs/design.md``)::
+The pipeline runs one way, and so do the imports (the layer table in ``docs/design.md``,
+held by ``tests/test_import_layers.py``)::
 
-    scenario -> poses -> scene -> lighting -> render -> sensor -> dataset
+    scenario -> ephemeris -> poses -> scene -> lighting -> render -> sensor -> dataset
 
 All quantities are SI inside; non-SI units appear only at the edges and then in names
 (``distance_km``, ``pixel_pitch_um``).
