@@ -20,15 +20,10 @@ import numpy as np
 import pytest
 
 from iss_elements import ISS_1, ISS_2, ISS_OMM_FIELDS
+from satsight.ephemeris.omm import parse_omm
+from satsight.ephemeris.sgp4_orbit import MAX_AGE_DAYS
 from satsight.ephemeris.time import epoch_times
-from satsight.ephemeris.tle import (
-    MAX_AGE_DAYS,
-    parse_omm,
-    parse_tle,
-    read_tle_file,
-    select_orbit,
-    tle_checksum,
-)
+from satsight.ephemeris.tle import parse_tle, read_tle_file, select_orbit, tle_checksum
 from satsight.errors import SatsightError
 from tolerances import ONE_MM_S
 
@@ -116,7 +111,7 @@ def test_short_line_and_missing_line_2() -> None:
 
 def test_age_warning_and_refusal(caplog: pytest.LogCaptureFixture) -> None:
     orbit = parse_tle([ISS_1, ISS_2])[0]
-    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.tle"):
+    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.sgp4_orbit"):
         orbit.state_gcrs(epoch_times(orbit.epoch_utc, [8 * 86400.0]))
     assert "SGP4 accuracy degrades" in caplog.text
     with pytest.raises(SatsightError, match=r"refused beyond 30 days"):

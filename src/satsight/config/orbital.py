@@ -17,15 +17,11 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
-from satsight.ephemeris.oem import OemEphemeris, read_oem
+from satsight.ephemeris.oem import read_oem
+from satsight.ephemeris.oem_ephemeris import OemEphemeris
 from satsight.ephemeris.orbits import MU_EARTH_M3_S2, OrbitalElements
-from satsight.ephemeris.tle import (
-    Sgp4Orbit,
-    parse_tle,
-    read_omm_file,
-    read_tle_file,
-    select_orbit,
-)
+from satsight.ephemeris.sgp4_orbit import Sgp4Orbit
+from satsight.ephemeris.tle import parse_tle, read_omm_file, read_tle_file, select_orbit
 from satsight.ephemeris.visibility import DEFAULT_ATMOSPHERE_MARGIN_M, VisibilityLimits
 from satsight.poses.attitude import ROLL_POLICIES
 from satsight.poses.samplers import APPROACH_INTERVALS_KM, HOVER_DISTANCE_KM
