@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from cli_runner import run_satsight
+from cli_runner import invoke_satsight, run_satsight
 from satsight.config import yaml_safety
 from satsight.config.scenario import load_scenario
 from satsight.config.yaml_safety import MAX_ALIASES, MAX_DEPTH, load_yaml_file
@@ -107,6 +107,11 @@ HOSTILE: dict[str, tuple[Callable[[Path], Path], str]] = {
     "a symbolic link loop": (_symlink_loop, "symbolic link"),
 }
 
+# The case run in a child process, as typed at the command line: the deepest recursion a
+# parser could attempt, the one that could end the interpreter rather than raise. The
+# others check the message and exit status, the same in this interpreter.
+IN_A_CHILD_PROCESS = "10 000 nested lists"
+
 
 @pytest.mark.parametrize("case", list(HOSTILE))
 def test_generate_refuses_hostile_scenario_in_one_line(case: str, tmp_path: Path) -> None:
@@ -115,7 +120,8 @@ def test_generate_refuses_hostile_scenario_in_one_line(case: str, tmp_path: Path
     inputs.mkdir()
     path = make(inputs)
     out = tmp_path / "out"
-    result = run_satsight("generate", str(path), "--out", str(out), cwd=tmp_path)
+    run = run_satsight if case == IN_A_CHILD_PROCESS else invoke_satsight
+    result = run("generate", str(path), "--out", str(out), cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     assert "Traceback" not in result.stderr
     lines = result.stderr.strip().splitlines()
