@@ -21,4 +21,3 @@ def test_codata_constants_are_the_exact_si_values():
     assert constants.PLANCK_J_S == 6.62607015e-34
     assert constants.SPEED_OF_LIGHT_M_S == 299_792_458.0
     assert constants.BOLTZMANN_J_K == 1.380649e-23
-
