@@ -22,10 +22,12 @@ import pytest
 
 from cli_runner import invoke_satsight, run_satsight
 from iss_elements import ISS_1, ISS_2, ISS_OMM_FIELDS
-from satsight.ephemeris.oem import GAP_FACTOR, format_oem, parse_oem
+from satsight.ephemeris.oem import format_oem, parse_oem
+from satsight.ephemeris.oem_ephemeris import GAP_FACTOR
+from satsight.ephemeris.omm import parse_omm
 from satsight.ephemeris.orbits import MU_EARTH_M3_S2
 from satsight.ephemeris.time import timescale
-from satsight.ephemeris.tle import parse_omm, parse_tle, select_orbit, tle_checksum
+from satsight.ephemeris.tle import parse_tle, select_orbit, tle_checksum
 from satsight.errors import SatsightError
 
 RADIUS_M = 7000e3
@@ -119,7 +121,7 @@ def test_start_time_before_first_state_defaults_to_the_first_state(caplog) -> No
     text = _oem(seconds).replace(
         "START_TIME = 2025-06-21T06:40:00.000000", "START_TIME = 2025-06-21T06:00:00.000000"
     )
-    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem"):
+    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem_segments"):
         ephemeris = parse_oem(text, source="early.oem")
     start_line = _line_of(text, "START_TIME")
     assert f"early.oem, line {start_line}: START_TIME" in caplog.text
@@ -144,7 +146,7 @@ def test_stop_time_after_last_state_refuses_times_past_it(caplog) -> None:
     text = _oem(seconds).replace(
         "STOP_TIME = 2025-06-21T06:30:00.000000", "STOP_TIME = 2025-06-21T07:00:00.000000"
     )
-    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem"):
+    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem_segments"):
         ephemeris = parse_oem(text)
     assert "follows the segment's last state" in caplog.text
     ephemeris.state_gcrs(_times([1800.0]))
@@ -207,7 +209,7 @@ def test_time_in_a_gap_is_refused_and_both_sides_stay_accurate(
     seconds = np.arange(0.0, 3 * 3600.0 + 1.0, 60.0)
     kept = seconds[(seconds <= 3600.0) | (seconds >= 3600.0 + 2400.0)]  # a 40-minute hole
     text = _oem(kept, interpolation, degree)
-    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem"):
+    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem_segments"):
         ephemeris = parse_oem(text, source="gap.oem")
     before = _line_of(text, "2025-06-21T07:00:00")
     after = _line_of(text, "2025-06-21T07:40:00")
@@ -231,7 +233,7 @@ def test_smooth_step_changes_and_a_missing_state_are_not_gaps(caplog) -> None:
     dense = np.arange(0.0, 1800.0, 60.0)
     sparse = np.arange(1800.0, 1800.0 + 30 * 300.0, 300.0)  # the producer's coarser step
     missing_one = np.delete(dense, 10)  # one 120 s step among 60 s ones
-    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem"):
+    with caplog.at_level(logging.WARNING, logger="satsight.ephemeris.oem_segments"):
         for seconds in (np.concatenate([dense, sparse]), missing_one):
             ephemeris = parse_oem(_oem(seconds))
             ephemeris.state_gcrs(_times(np.linspace(seconds[0], seconds[-1], 301)))
