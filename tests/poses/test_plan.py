@@ -18,8 +18,9 @@ from satsight.frames.orbital import lvlh_from_inertial
 from satsight.frames.quaternion import matrix_from_quaternion
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
 from satsight.pipeline import frame_light
+from satsight.poses.distance_intervals import APPROACH_INTERVALS_KM
 from satsight.poses.plan import frames_to_render, plan_track
-from satsight.poses.samplers import APPROACH_INTERVALS_KM, fibonacci_sphere
+from satsight.poses.rssf import fibonacci_sphere
 from satsight.poses.views import View
 
 CENTER_M = np.array([0.4, -0.3, 1.1])  # a bounding-box centre off the body origin

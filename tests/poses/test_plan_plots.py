@@ -11,16 +11,18 @@ from PIL import Image
 
 from satsight.errors import SatsightError
 from satsight.poses.plan_plots import (
-    FLAG_SHORT_NAMES,
     RANGE_PHASE_FILE,
     TRAJECTORY_FILE,
     VISIBILITY_FILE,
     has_rtn,
+    time_axis,
+    write_plan_plots,
+)
+from satsight.poses.plan_table import (
+    FLAG_SHORT_NAMES,
     plan_csv_columns,
     plan_table_rows,
-    time_axis,
     write_plan_csv,
-    write_plan_plots,
 )
 from satsight.poses.track import FLAG_FIELDS, PoseTrack
 

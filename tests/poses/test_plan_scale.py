@@ -28,19 +28,15 @@ from satsight.config.scenario import load_scenario
 from satsight.frames.orbital import lvlh_from_inertial, relative_rtn, rtn_from_inertial
 from satsight.pipeline import build_target
 from satsight.poses import plan
-from satsight.poses.plan import PLAN_CHUNK_FRAMES
-from satsight.poses.plan_plots import (
-    CSV_CHUNK_ROWS,
-    MAX_PLOTTED_FRAMES,
-    plot_frame_indices,
-    write_plan_plots,
-)
-from satsight.poses.samplers import (
+from satsight.poses.distance_intervals import (
     DistanceInterval,
     default_intervals,
     interval_name_for_range,
     interval_names_for_ranges,
 )
+from satsight.poses.plan import PLAN_CHUNK_FRAMES
+from satsight.poses.plan_plots import MAX_PLOTTED_FRAMES, plot_frame_indices, write_plan_plots
+from satsight.poses.plan_table import CSV_CHUNK_ROWS
 from satsight.poses.track import PoseTrack
 
 EXAMPLES = example_scenario_path().parent
@@ -438,13 +434,13 @@ def test_plan_command_of_a_long_plan_prints_a_short_table(tmp_path: Path) -> Non
 
 
 def test_plan_csv_in_chunks_writes_every_float_as_repr(tmp_path: Path, monkeypatch) -> None:
-    from satsight.poses import plan_plots
+    from satsight.poses import plan_table
 
     scenario = _scenario("approach.yaml", 40)
     track = plan.plan_track(scenario.plan_request(), build_target(scenario.target).center_m)
-    whole = plan_plots.write_plan_csv(track, tmp_path / "whole.csv").read_bytes()
-    monkeypatch.setattr(plan_plots, "CSV_CHUNK_ROWS", 7)
-    chunked = plan_plots.write_plan_csv(track, tmp_path / "chunked.csv").read_bytes()
+    whole = plan_table.write_plan_csv(track, tmp_path / "whole.csv").read_bytes()
+    monkeypatch.setattr(plan_table, "CSV_CHUNK_ROWS", 7)
+    chunked = plan_table.write_plan_csv(track, tmp_path / "chunked.csv").read_bytes()
     assert chunked == whole
     lines = whole.decode("utf-8").splitlines()
     assert len(lines) == 41

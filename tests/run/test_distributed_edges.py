@@ -27,13 +27,9 @@ from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
 from satsight.errors import SatsightError
 from satsight.run import distributed
-from satsight.run.distributed import (
-    _probe_scheduler,
-    local_worker_cap,
-    scheduler_address,
-    worker_memory_bytes,
-)
+from satsight.run.distributed import local_worker_cap, worker_memory_bytes
 from satsight.run.generation import generate_dataset
+from satsight.run.scheduler_address import probe_scheduler, scheduler_address
 
 dask_distributed = pytest.importorskip("dask.distributed")
 
@@ -205,14 +201,14 @@ def test_a_silent_program_and_another_protocol_are_named() -> None:
     try:
         started = time.monotonic()
         with pytest.raises(SatsightError, match=r"a program listens there but sent no Dask"):
-            _probe_scheduler(f"tcp://127.0.0.1:{port}", timeout_s=1.0)
+            probe_scheduler(f"tcp://127.0.0.1:{port}", timeout_s=1.0)
         assert time.monotonic() - started < 10
     finally:
         close()
     port, close = _listener(b"SSH-2.0-OpenSSH_9.2p1\r\n")
     try:
         with pytest.raises(SatsightError, match=r"answered 'SSH-2.0-OpenSSH_9.2p1', not a Dask"):
-            _probe_scheduler(f"tcp://127.0.0.1:{port}", timeout_s=1.0)
+            probe_scheduler(f"tcp://127.0.0.1:{port}", timeout_s=1.0)
     finally:
         close()
 
@@ -222,9 +218,9 @@ def test_a_closed_port_and_an_unknown_host_fail_at_once() -> None:
         port = server.getsockname()[1]  # free once closed
     started = time.monotonic()
     with pytest.raises(SatsightError, match=rf"nothing listens on port {port} of 127.0.0.1"):
-        _probe_scheduler(f"tcp://127.0.0.1:{port}")
+        probe_scheduler(f"tcp://127.0.0.1:{port}")
     with pytest.raises(SatsightError, match=r"the host name no-such-host\.invalid is not known"):
-        _probe_scheduler("tcp://no-such-host.invalid:8786")
+        probe_scheduler("tcp://no-such-host.invalid:8786")
     assert time.monotonic() - started < 10
 
 
@@ -233,7 +229,7 @@ def test_a_real_scheduler_passes_the_probe() -> None:
         n_workers=0, processes=True, dashboard_address=":0", protocol="tcp"
     ) as local:
         assert local.scheduler_address.startswith("tcp://")
-        _probe_scheduler(local.scheduler_address, timeout_s=5.0)
+        probe_scheduler(local.scheduler_address, timeout_s=5.0)
 
 
 # --- how many local workers ----------------------------------------------------------------

@@ -165,7 +165,7 @@ def generate(
     if workers is not None and scheduler is not None:
         raise SatsightError("give --workers or --scheduler, not both")
     if scheduler is not None:
-        from satsight.run.distributed import scheduler_address
+        from satsight.run.scheduler_address import scheduler_address
 
         scheduler = scheduler_address(scheduler)  # at once, before the scenario loads
     _generate(config, out_dir, overwrite, resume, shard, workers, scheduler, outputs, crop_px)

@@ -24,7 +24,7 @@ from satsight.ephemeris.sgp4_orbit import Sgp4Orbit
 from satsight.ephemeris.tle import parse_tle, read_omm_file, read_tle_file, select_orbit
 from satsight.ephemeris.visibility import DEFAULT_ATMOSPHERE_MARGIN_M, VisibilityLimits
 from satsight.poses.attitude import ROLL_POLICIES
-from satsight.poses.samplers import APPROACH_INTERVALS_KM, HOVER_DISTANCE_KM
+from satsight.poses.distance_intervals import APPROACH_INTERVALS_KM, HOVER_DISTANCE_KM
 
 # Lowest perigee accepted: below ~100 km an orbit decays within hours.
 MIN_PERIGEE_ALTITUDE_KM = 100.0

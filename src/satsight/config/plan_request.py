@@ -35,6 +35,7 @@ from satsight.config.orbital import (
 )
 from satsight.ephemeris.orbits import orbital_period_s
 from satsight.errors import SatsightError
+from satsight.poses.distance_intervals import DistanceInterval
 from satsight.poses.plan_request import (
     Approach,
     AttitudeLaw,
@@ -54,7 +55,6 @@ from satsight.poses.plan_request import (
     VisibilityRule,
     natural_span_s,
 )
-from satsight.poses.samplers import DistanceInterval
 
 
 def observer_motion(observer: ObserverConfig) -> ObserverMotion:

@@ -32,17 +32,13 @@ The plan is asked for with a ``satsight.poses.plan_request.PlanRequest`` (typed,
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
 from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
 from satsight.ephemeris.occultation import inside_earth
 from satsight.ephemeris.orbits import (
-    J2,
-    MU_EARTH_M3_S2,
     OrbitalElements,
     elements_from_state,
     orbital_period_s,
@@ -56,7 +52,6 @@ from satsight.ephemeris.wgs84 import geodetic_height_m
 from satsight.errors import SatsightError
 from satsight.frames.orbital import inertial_from_relative_rtn, relative_rtn, rtn_from_inertial
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_conjugate
-from satsight.frames.rigid import RigidTransform
 from satsight.poses import relative_motion as rm
 from satsight.poses.attitude import (
     cam_from_body,
@@ -66,31 +61,25 @@ from satsight.poses.attitude import (
     pointing_gcrs_from_cam,
     spinning_attitude,
 )
+from satsight.poses.distance_intervals import default_intervals, interval_names_for_ranges
+from satsight.poses.observer_start import mean_motion_rad_s, observer_initial_state
 from satsight.poses.plan_request import (
     Approach,
     FlyAround,
-    FlyBy,
     Hover,
     OrbitalPlanRequest,
     OwnElements,
     OwnTrajectory,
     PlanRequest,
-    RelativeRtn,
     RssfSampler,
     TrajectoryStates,
     ViewsPlanRequest,
     natural_span_s,
 )
-from satsight.poses.samplers import (
-    default_intervals,
-    interval_name_for_range,
-    interval_names_for_ranges,
-    rssf_samples,
-    sspt_angle_times_s,
-    sspt_times_s,
-)
+from satsight.poses.rssf import rssf_samples
+from satsight.poses.sspt import sspt_angle_times_s, sspt_times_s
 from satsight.poses.track import FLAG_FIELDS, PoseTrack
-from satsight.vectors import angle_between_rad
+from satsight.poses.view_track import views_track
 
 # Frames planned together past the flight (see `_orbital_track`): the Earth's orientation
 # takes ~22 kB a frame while skyfield computes it, so a chunk holds ~100 MB at most.
@@ -109,7 +98,7 @@ def plan_track(
     """
     center = np.asarray(target_center_body_m, dtype=np.float64).reshape(3)
     if isinstance(request, ViewsPlanRequest):
-        track = _views_track(request, center)
+        track = views_track(request, center)
     else:
         track = _orbital_track(request, center)
     inside = np.flatnonzero(track.range_m <= target_radius_m)
@@ -130,66 +119,7 @@ def frames_to_render(request: PlanRequest, track: PoseTrack) -> np.ndarray:
     return np.arange(len(track))
 
 
-# --- views given in the body frame ---------------------------------------------------------
-
-
-def _views_track(request: ViewsPlanRequest, center: np.ndarray) -> PoseTrack:
-    n = len(request.frames)
-    poses = [
-        frame if isinstance(frame, RigidTransform) else frame.cam_from_body(center)
-        for frame in request.frames
-    ]
-    R = np.stack([p.R_a_from_b for p in poses])
-    sun_body = request.sun_direction_body
-    sun_cam = R @ sun_body
-    nan3 = np.full((n, 3), np.nan)
-    nan = np.full(n, np.nan)
-
-    def body_in_cam(vector: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        if vector is None:
-            return nan3, nan
-        return R @ (vector / np.linalg.norm(vector)), np.full(n, np.linalg.norm(vector))
-
-    earth_dir, earth_dist = body_in_cam(request.earth_center_from_target_m)
-    moon_dir, moon_dist = body_in_cam(request.moon_center_from_target_m)
-    center_cam = np.einsum("nij,j->ni", R, center) + np.stack([p.t_a_from_b_m for p in poses])
-    range_m = np.linalg.norm(center_cam, axis=1)
-    boresight = np.tile([0.0, 0.0, 1.0], (n, 1))
-    no = np.zeros(n, dtype=bool)
-    intervals = default_intervals(include_hover=True)
-    return PoseTrack(
-        time_s=np.zeros(n),
-        epoch_utc=("",) * n,
-        q_cam_from_body=np.stack([p.q_a_from_b for p in poses]),
-        t_cam_from_body_m=np.stack([p.t_a_from_b_m for p in poses]),
-        sun_from_target_cam=sun_cam,
-        sun_distance_m=np.full(n, request.sun_distance_m),
-        earth_from_target_cam=earth_dir,
-        earth_distance_m=earth_dist,
-        moon_from_target_cam=moon_dir,
-        moon_distance_m=moon_dist,
-        rho_rtn_m=nan3,
-        range_m=range_m,
-        phase_angle_rad=angle_between_rad(sun_cam, -center_cam),
-        sunlit_fraction=np.ones(n),
-        los_clearance_m=np.full(n, np.inf),
-        sun_boresight_angle_rad=angle_between_rad(sun_cam, boresight),
-        earth_occulted=no,
-        eclipsed=no,
-        sun_excluded=no,
-        phase_rejected=no,
-        interval=tuple(interval_name_for_range(r, intervals) for r in range_m),
-        q_cam_from_gcrs=np.full((n, 4), np.nan),
-        camera_position_gcrs_m=nan3,
-        camera_velocity_gcrs_m_s=nan3,
-    )
-
-
 # --- frames planned from orbits ------------------------------------------------------------
-
-
-def _mean_motion_rad_s(elements: OrbitalElements) -> float:
-    return math.sqrt(MU_EARTH_M3_S2 / elements.semi_major_axis_m**3)
 
 
 def _natural_span_s(request: OrbitalPlanRequest) -> float:
@@ -212,78 +142,6 @@ def _sspt_times(request: OrbitalPlanRequest) -> np.ndarray:
     if sampler.frame_count is not None and sampler.frame_count > 1 and closed:
         return sspt_times_s(start, end, frame_count=sampler.frame_count, include_end=False)
     return sspt_times_s(start, end, frame_count=sampler.frame_count, step_s=sampler.step_s)
-
-
-def _specific_energy(r: np.ndarray, v: np.ndarray, j2: bool) -> float:
-    """Orbital energy per unit mass, J/kg, with the J2 potential when j2 is on."""
-    rn = float(np.linalg.norm(r))
-    energy = 0.5 * float(v @ v) - MU_EARTH_M3_S2 / rn
-    if j2:
-        sin_lat2 = (r[2] / rn) ** 2
-        energy += (
-            MU_EARTH_M3_S2
-            / rn
-            * J2
-            * (EARTH_EQUATORIAL_RADIUS_M / rn) ** 2
-            * 0.5
-            * (3.0 * sin_lat2 - 1.0)
-        )
-    return energy
-
-
-def _match_energy(
-    r_obs: np.ndarray, v_obs: np.ndarray, r_target: np.ndarray, v_target: np.ndarray, j2: bool
-) -> np.ndarray:
-    """The observer's velocity rescaled so its orbital energy equals the target's.
-
-    Equal energy means equal (mean) semi-major axis, hence no secular along-track drift: the
-    linear Clohessy-Wiltshire initial state of a closed relative orbit drifts under the full
-    dynamics by its second-order energy error, about 3 pi (dE / (n a)) per orbit.
-    """
-    target_energy = _specific_energy(r_target, v_target, j2)
-    potential = _specific_energy(r_obs, np.zeros(3), j2)
-    speed = math.sqrt(2.0 * (target_energy - potential))
-    return v_obs * (speed / float(np.linalg.norm(v_obs)))
-
-
-def _observer_initial_state(
-    request: OrbitalPlanRequest, r0: np.ndarray, v0: np.ndarray, elements: OrbitalElements
-) -> tuple[np.ndarray, np.ndarray]:
-    """The observer's inertial state at the epoch for a natural-motion mode."""
-    motion = request.observer.motion
-    n = _mean_motion_rad_s(elements)
-    j2 = request.propagation.j2
-    if isinstance(motion, OwnElements):
-        return state_from_elements(motion.elements)
-    if isinstance(motion, Hover):
-        # Same orbit, earlier (behind) or later (ahead) by the angle whose chord is the range.
-        radius = float(np.linalg.norm(r0))
-        if motion.range_m >= 2.0 * radius:
-            raise SatsightError("hover range_km exceeds the target orbit's diameter")
-        shift = 2.0 * math.asin(motion.range_m / (2.0 * radius))
-        sign = -1.0 if motion.side == "behind" else 1.0
-        shifted = OrbitalElements(
-            elements.semi_major_axis_m,
-            elements.eccentricity,
-            elements.inclination_rad,
-            elements.raan_rad,
-            elements.arg_perigee_rad,
-            elements.true_anomaly_rad + sign * shift,
-        )
-        r, v = state_from_elements(shifted)
-        return r, _match_energy(r, v, r0, v0, j2)
-    if isinstance(motion, FlyAround):
-        rho, rho_dot = rm.fly_around_initial_state(motion.radius_m, n, phase_rad=motion.phase_rad)
-        r, v = inertial_from_relative_rtn(r0, v0, rho, rho_dot)
-        return r, _match_energy(r, v, r0, v0, j2)
-    if isinstance(motion, FlyBy):
-        rho, rho_dot = rm.fly_by_initial_state(
-            motion.miss_distance_m, motion.start_along_track_m, n
-        )
-        return inertial_from_relative_rtn(r0, v0, rho, rho_dot)
-    if isinstance(motion, RelativeRtn):
-        return inertial_from_relative_rtn(r0, v0, motion.position_rtn_m, motion.velocity_rtn_m_s)
-    raise SatsightError(f"observer motion {type(motion).__name__} is not natural motion")
 
 
 def _target_attitude(
@@ -398,7 +256,7 @@ def _sspt_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Fligh
             np.append(times, end),
             motion.start_range_m,
             motion.end_range_m,
-            _mean_motion_rad_s(elements),
+            mean_motion_rad_s(elements),
             revolutions=motion.revolutions,
             via_ranges_m=motion.via_ranges_m,
         )
@@ -407,7 +265,7 @@ def _sspt_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Fligh
     elif isinstance(motion, OwnTrajectory):
         r_obs, v_obs = _trajectory_states(motion.states, request, times)
     else:
-        r_obs, v_obs = fly(*_observer_initial_state(request, r0, v0, elements), times)
+        r_obs, v_obs = fly(*observer_initial_state(request, r0, v0, elements), times)
         if not from_elements and not isinstance(motion, OwnElements):
             # The natural relative motion comes from both spacecraft flown with the same
             # dynamics from the target's state at the epoch; it is carried, in RTN, onto the

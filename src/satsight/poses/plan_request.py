@@ -26,7 +26,7 @@ from satsight.ephemeris.orbits import MU_EARTH_M3_S2, OrbitalElements, orbital_p
 from satsight.ephemeris.visibility import VisibilityLimits
 from satsight.errors import SatsightError
 from satsight.frames.rigid import RigidTransform
-from satsight.poses.samplers import DistanceInterval
+from satsight.poses.distance_intervals import DistanceInterval
 from satsight.poses.views import View
 
 # --- views in the body frame ---------------------------------------------------------------
