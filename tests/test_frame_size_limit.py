@@ -60,7 +60,7 @@ def test_largest_size_is_the_largest_that_fits(width, height, limit_gb) -> None:
     limit = limit_gb * GB
     w, h = largest_frame_px(width, height, limit)
     check_frame_memory(w, h, limit_bytes=limit)  # fits
-    with pytest.raises(SatsightError):
+    with pytest.raises(SatsightError, match=rf"{w + 1} x {h + 1} px needs about"):
         check_frame_memory(w + 1, h + 1, limit_bytes=limit)
     assert abs(w / h - width / height) < 0.02 * width / height  # same shape
 
