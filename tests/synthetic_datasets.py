@@ -8,6 +8,9 @@ keypoints), so that ``satsight validate`` finds it clean (``keypoints_visible`` 
 out: it would need the depth image of the moved pose). Its files are either none (labels
 only) or the template frame's, shared by every frame (images are written once, not ``count`` times).
 The dataset is closed as ``generate`` closes one (``finalize_dataset``); no record is held.
+
+The memory tests run a pass over two such datasets, of N and 4N frames, and check that its
+tracemalloc peak does not grow with the frame count (``assert_peak_does_not_grow``).
 """
 
 from __future__ import annotations
@@ -16,7 +19,9 @@ import json
 import shutil
 import tracemalloc
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -28,10 +33,27 @@ from satsight.frames.quaternion import (
     quaternion_from_axis_angle,
     quaternion_multiply,
 )
+from satsight.scene.mesh import TargetMesh
+from satsight.scene.obj_export import write_obj
 
-#: Frames of the large labels-only dataset of the memory tests (tests/dataset/conftest.py):
-#: a journal of about 60 MB and a labels.json of about 100 MB.
-LARGE_FRAME_COUNT = 20_000
+#: Frame counts of the two labels-only datasets of the memory tests (tests/dataset/
+#: conftest.py), records of about 21 kB each as Python objects: a pass holding them all
+#: would peak about 13 MB higher on the second than on the first. From about 600 frames
+#: on, validate's read buffers (labels.json and the journal are read in 1 MiB chunks) are
+#: full and its peak stays flat; below, it rises with the files' size.
+LABELS_ONLY_FRAME_COUNTS = (600, 1200)
+#: Frame counts (N, 4N) of the two datasets with files: an export writes images for each
+#: frame, so fewer (a pass holding every record would peak about 7 MB higher on the second).
+WITH_FILES_FRAME_COUNTS = (100, 400)
+#: What a memory peak may rise by for each frame added, as a fraction of one frame record
+#: held as Python objects. The passes keep a few numbers per frame (journal offsets and
+#: lengths, a seen flag, a few floats for histograms: under 200 bytes, 1 % of a record);
+#: a pass that holds every record rises by a whole record per frame, ten times this.
+GROWTH_PER_FRAME_OF_A_RECORD = 0.1
+#: What a memory peak may differ by between two runs whatever their frame counts: which
+#: records (a window of 8 on validate's threads, 21 kB each) and images are in flight when
+#: it is reached, a few hundred kB.
+PEAK_JITTER_BYTES = 512 * 1024
 
 
 def _pixels(points_cam: np.ndarray, K: np.ndarray) -> np.ndarray:
@@ -100,13 +122,16 @@ def write_synthetic_dataset(
     count: int,
     files: tuple[str, ...] = (),
     edit: Callable[[dict], None] | None = None,
+    model: TargetMesh | None = None,
 ) -> Path:
     """A complete dataset of ``count`` frames in ``root`` made from the first frame of
     the dataset in ``template``; returns root.
 
     files: the template frame's outputs (``preview_png8``, ...) every frame shares (their
     files copied once); none: a labels-only dataset. edit(record): a change made to each
-    record after it is built (to break it).
+    record after it is built (to break it). model: the target's mesh, written as the
+    dataset's model (and summarised in its header) instead of the template's; the
+    keypoints stay the template's.
     """
     root.mkdir(parents=True)
     manifest = json.loads((template / "manifest.json").read_text(encoding="utf-8"))
@@ -115,6 +140,11 @@ def write_synthetic_dataset(
     manifest.update(frame_count=count, plan_indices=list(range(count)), shard=None)
     manifest["outputs"] = {**manifest["outputs"], "contact_sheet": False}
     shutil.copytree(template / "model", root / "model")
+    if model is not None:
+        for path in (root / "model").iterdir():
+            path.unlink()
+        write_obj(model, root / "model" / "target.obj")
+        manifest["target"] = {**manifest["target"], **model.summary()}
     write_manifest(root, manifest)
     record = {**first, "files": {}, "checksums": {}}
     if "crop" in record:
@@ -157,3 +187,61 @@ def held_records_bytes(root: Path, sample: int = 200) -> float:
     tracemalloc.stop()
     del held
     return size * len(frames) / sample
+
+
+Result = TypeVar("Result")
+
+
+def traced_peak(run: Callable[[], Result]) -> tuple[Result, int]:
+    """What ``run()`` returns, and the peak of the memory Python allocated while it ran
+    (bytes, tracemalloc: the objects alive at the peak, the interpreter's own excluded)."""
+    tracemalloc.start()
+    try:
+        result = run()
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    return result, peak
+
+
+@dataclass(frozen=True)
+class MemoryPeak:
+    """The memory peak (bytes) of a pass over a dataset of ``frames`` frames whose records
+    take ``records_bytes`` held at once as Python objects (``held_records_bytes``)."""
+
+    frames: int
+    peak_bytes: int
+    records_bytes: float
+
+    @property
+    def record_bytes(self) -> float:
+        """One frame record held as Python objects, on average (bytes)."""
+        return self.records_bytes / self.frames
+
+    def __str__(self) -> str:
+        return (
+            f"peak {self.peak_bytes / 1e6:.2f} MB for {self.frames} frames, whose records "
+            f"take {self.records_bytes / 1e6:.1f} MB held at once"
+        )
+
+
+def assert_peak_does_not_grow(small: MemoryPeak, large: MemoryPeak) -> None:
+    """The peak of a pass does not grow with the frame count: from ``small`` to ``large``
+    it rises by at most ``GROWTH_PER_FRAME_OF_A_RECORD`` of a record per frame added, plus
+    ``PEAK_JITTER_BYTES``.
+
+    A pass holding every record would rise by a whole record per frame added; the frame
+    counts must leave it at least three times the allowance, or the check proves nothing.
+    """
+    added = large.frames - small.frames
+    allowed = added * large.record_bytes * GROWTH_PER_FRAME_OF_A_RECORD + PEAK_JITTER_BYTES
+    holding_all = added * large.record_bytes
+    assert holding_all > 3 * allowed, (
+        f"{small.frames} and {large.frames} frames are too close for a pass holding every "
+        f"record ({holding_all / 1e6:.1f} MB more) to exceed {allowed / 1e6:.1f} MB"
+    )
+    growth = large.peak_bytes - small.peak_bytes
+    assert growth <= allowed, (
+        f"the peak grew by {growth / 1e6:.2f} MB from {small.frames} to {large.frames} "
+        f"frames, more than the {allowed / 1e6:.2f} MB allowed: {small}; {large}"
+    )
