@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli_runner import run_satsight
+from cli_runner import invoke_satsight
 from satsight.brdf.fit import check_table, fit_brdf
 from satsight.brdf.measurements import measurements_from_degrees, read_brdf_csv
 from satsight.brdf.metrics import fit_metrics
@@ -51,7 +51,9 @@ def _set(**values):
 
 
 def _fit(folder: Path, csv: Path, model: str = "ggx"):
-    return run_satsight("fit-brdf", str(csv), "--model", model, "--out", "fit", cwd=folder)
+    """``satsight fit-brdf`` in this interpreter (its exit status and messages as in a child
+    process; test_materials_cli runs the refusal of a bad table in one)."""
+    return invoke_satsight("fit-brdf", str(csv), "--model", model, "--out", "fit", cwd=folder)
 
 
 def _refused_line(result) -> str:

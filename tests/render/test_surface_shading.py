@@ -185,14 +185,16 @@ def test_glossy_sphere_light_curve_is_smooth_only_with_smooth_normals(llvm_varia
     of a glossy icosphere jumps by factors of 2-4 with phase. With smooth normals it
     follows the true sphere's (quadrature) to a few per cent."""
     settings = RenderSettings(environment="off", bounces=0, supersampling=4, ggx_masking="smith")
+    phases_rad = [math.radians(deg) for deg in range(0, 121, 15)]
+    # I / (E R^2) of the true sphere, once per phase for both shadings.
+    sphere = [_glossy_sphere_intensity(a, METAL.roughness) for a in phases_rad]
     ratios = {}
     for name, mesh in zip(("flat", "smooth"), _spheres(METAL), strict=True):
         renderer = Renderer(mesh, settings, llvm_variant)
         ratios[name] = []
-        for deg in range(0, 121, 15):
-            a = math.radians(deg)
+        for a, unit_intensity in zip(phases_rad, sphere, strict=True):
             intensity, area = _intensity(renderer, a)
-            expected = _glossy_sphere_intensity(a, METAL.roughness) * E_W_M2 * area / math.pi
+            expected = unit_intensity * E_W_M2 * area / math.pi
             ratios[name].append(intensity / expected)
     smooth, flat = np.array(ratios["smooth"]), np.array(ratios["flat"])
     assert np.all(np.abs(smooth - 1.0) <= 0.05), smooth
