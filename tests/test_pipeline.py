@@ -141,7 +141,7 @@ def test_finish_makes_the_record_and_a_dn_image_of_the_camera_size(views_engine)
         assert {"plan", "sun_direction_body", "environment_sh_radiance_w_m2_sr", "sensor"} <= set(
             record
         )
-        np.testing.assert_array_equal(record["sun_direction_body"], frame.sun.direction_body)
+        np.testing.assert_array_equal(record["sun_direction_body"], frame.light.sun_direction_body)
         assert arrays.image is frame.image
         dn = arrays.dn_image.dn
         assert dn.shape == (SIZE_PX, SIZE_PX) and dn.dtype == np.uint16

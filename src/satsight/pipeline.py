@@ -36,7 +36,7 @@ from satsight.lighting.scene_bodies import earth_body, moon_body
 from satsight.lighting.solar_spectrum import irradiance_at_distance_w_m2
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
-from satsight.render.buffers import RadianceImage, SunLight
+from satsight.render.buffers import RadianceImage
 from satsight.render.renderer import Renderer
 from satsight.scene.band_reflectance import builtins_from_library, library_materials
 from satsight.scene.keypoints import target_keypoints_body_m
@@ -88,7 +88,7 @@ def sun_irradiance_w_m2(scenario: Scenario, track: PoseTrack, index: int) -> flo
     return irradiance_at_distance_w_m2(at_1_au, track.sun_distance_m[index])
 
 
-def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[LightField, SunLight]:
+def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> LightField:
     """The light at the target in frame ``index`` of the plan, in the body frame.
 
     The Sun's in-band irradiance is the scenario's value at 1 AU scaled by the inverse square
@@ -145,8 +145,7 @@ def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> tuple[Light
     )
     if moon is not None:
         bodies.append(moon_body(moon_center, MOON_MEAN_RADIUS_M, moon.albedo, sun_body, irradiance))
-    light = dataclasses.replace(light, bodies=tuple(bodies))
-    return light, SunLight(sun_body, at_target)
+    return dataclasses.replace(light, bodies=tuple(bodies))
 
 
 def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:
@@ -323,7 +322,6 @@ class RenderedFrame:
     plan_index: int
     cam_from_body: RigidTransform
     light: LightField
-    sun: SunLight
     image: RadianceImage
     camera_mode: str = "primary"
 
@@ -388,7 +386,7 @@ class FrameEngine:
         """Render frame ``frame_index`` of the dataset (its seed from its plan index)."""
         plan_index = int(self.plan_indices[frame_index])
         cam_from_body = self.track.cam_from_body(plan_index)
-        light, sun = frame_light(self.scenario, self.track, plan_index)
+        light = frame_light(self.scenario, self.track, plan_index)
         mode = self.camera_mode(plan_index)
         camera, sensor = self.modes[mode]
         image = self.renderer.render(
@@ -398,7 +396,7 @@ class FrameEngine:
             seed=frame_seed(self.scenario.seed, plan_index),
             margin_px=sensor.margin_px,
         )
-        return RenderedFrame(frame_index, plan_index, cam_from_body, light, sun, image, mode)
+        return RenderedFrame(frame_index, plan_index, cam_from_body, light, image, mode)
 
     def finish(self, frame: RenderedFrame) -> tuple[dict, FrameArrays, tuple | None]:
         """Labels, optics and detector of a rendered frame.
@@ -409,7 +407,12 @@ class FrameEngine:
         scenario, plan_index = self.scenario, frame.plan_index
         camera, sensor = self.modes[frame.camera_mode]
         labels = frame_labels(
-            self.mesh, camera, frame.cam_from_body, frame.sun, frame.image, self.keypoints_body_m
+            self.mesh,
+            camera,
+            frame.cam_from_body,
+            frame.light.sun,
+            frame.image,
+            self.keypoints_body_m,
         )
         sun_irradiance, sun_distance_m = self.sun_irradiance_at_camera(plan_index)
         photometry = frame_photometry(
@@ -434,7 +437,7 @@ class FrameEngine:
         if scenario.frames:
             record["view"] = scenario.frames[plan_index].model_dump(exclude_none=True)
         record["plan"] = self.track.record(plan_index)
-        record["sun_direction_body"] = frame.sun.direction_body.tolist()
+        record["sun_direction_body"] = frame.light.sun_direction_body.tolist()
         record["environment_sh_radiance_w_m2_sr"] = frame.light.sh_radiance_w_m2_sr.tolist()
         record.update(labels)
         record.update(photometry)

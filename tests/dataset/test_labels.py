@@ -10,8 +10,9 @@ import pytest
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.dataset.labels import frame_labels, mask_bbox_xyxy_px
+from satsight.lighting.light_field import SunLight
 from satsight.poses.views import View
-from satsight.render.buffers import RadianceImage, SunLight
+from satsight.render.buffers import RadianceImage
 from satsight.scene.mesh import merge_parts
 
 ATOL = 1e-9

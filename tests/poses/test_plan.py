@@ -319,10 +319,12 @@ def test_frame_light_scales_the_sun_by_distance_and_shadow() -> None:
     track = plan_track(scenario.plan_request(), CENTER_M)
     at_1_au = band_irradiance_w_m2(scenario.sun.band_nm, scenario.sun.spectrum, 1.0)
     for i in (int(np.argmin(track.eclipsed)), int(np.argmax(track.eclipsed))):
-        light, sun = frame_light(scenario, track, i)
+        light = frame_light(scenario, track, i)
+        sun = light.sun
         full = at_1_au * (AU_M / track.sun_distance_m[i]) ** 2
         assert sun.irradiance_w_m2 == pytest.approx(full * track.sunlit_fraction[i], rel=1e-12)
         assert light.sun_irradiance_w_m2 == sun.irradiance_w_m2
+        np.testing.assert_array_equal(sun.direction_body, light.sun_direction_body)
         np.testing.assert_allclose(
             sun.direction_body, body_from_cam(track, i) @ track.sun_from_target_cam[i]
         )

@@ -13,6 +13,7 @@ import pytest
 from builders import plate_parts
 from satsight.camera.pinhole import PinholeCamera
 from satsight.errors import SatsightError
+from satsight.lighting.light_field import SunLight
 from satsight.poses.views import View
 from satsight.render import backend
 from satsight.render.backend import (
@@ -22,7 +23,6 @@ from satsight.render.backend import (
     gpu_available,
     use_variant,
 )
-from satsight.render.buffers import SunLight
 from satsight.render.direct import DirectRenderer
 from satsight.scene.mesh import merge_parts
 from satsight.scene.procedural import generate_satellite

@@ -16,9 +16,8 @@ from scipy.spatial.transform import Rotation
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.dataset.labels import frame_labels
-from satsight.lighting.light_field import LightField
+from satsight.lighting.light_field import LightField, SunLight
 from satsight.poses.views import View
-from satsight.render.buffers import SunLight
 from satsight.render.direct import DirectRenderer
 from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings

@@ -15,7 +15,7 @@ import pytest
 from builders import plate_parts
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import look_at_cam_from_body
-from satsight.render.buffers import SunLight
+from satsight.lighting.light_field import SunLight
 from satsight.render.direct import DirectRenderer
 from satsight.scene.materials import Material
 from satsight.scene.mesh import merge_parts

@@ -30,8 +30,7 @@ from PIL import Image
 from builders import plate_parts
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import look_at_cam_from_body
-from satsight.lighting.light_field import LightField
-from satsight.render.buffers import SunLight
+from satsight.lighting.light_field import LightField, SunLight
 from satsight.render.direct import DirectRenderer
 from satsight.render.renderer import Renderer
 from satsight.render.settings import DIRECT_SUN_ONLY, RenderSettings

@@ -16,9 +16,9 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from satsight.constants import DEFAULT_BAND_NM, EARTH_MEAN_RADIUS_M
+from satsight.lighting.light_field import SunLight
 from satsight.lighting.solar_spectrum import SPECTRA, band_irradiance_w_m2
 from satsight.poses.views import direction_from_angles
-from satsight.render.buffers import SunLight
 
 
 class _Strict(BaseModel):

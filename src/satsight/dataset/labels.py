@@ -20,7 +20,8 @@ import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import RigidTransform
-from satsight.render.buffers import RadianceImage, SunLight
+from satsight.lighting.light_field import SunLight
+from satsight.render.buffers import RadianceImage
 from satsight.scene.mesh import TargetMesh
 from satsight.vectors import angle_between_rad
 

@@ -18,6 +18,31 @@ import numpy as np
 from satsight.errors import SatsightError
 from satsight.lighting.scene_bodies import SceneBody
 
+# A direction whose length is within this of 1 is unit already (a normalised vector's
+# length is 1 to a few ulp): it is kept as given, so that the Sun of a ``LightField`` and
+# its ``sun`` are the same bits.
+_UNIT_LENGTH_TOLERANCE = 4 * np.finfo(np.float64).eps
+
+
+@dataclass(frozen=True)
+class SunLight:
+    """The Sun as a collimated source (the ``LightField``'s Sun alone: ``LightField.sun``).
+
+    direction_body: (3,) unit vector from the target toward the Sun, body frame (any
+    length given; scaled to 1).
+    irradiance_w_m2: in-band irradiance on a surface facing the Sun, W m^-2.
+    """
+
+    direction_body: np.ndarray
+    irradiance_w_m2: float
+
+    def __post_init__(self) -> None:
+        d = np.asarray(self.direction_body, dtype=np.float64).reshape(3)
+        length = np.linalg.norm(d)
+        if abs(length - 1.0) > _UNIT_LENGTH_TOLERANCE:
+            d = d / length
+        object.__setattr__(self, "direction_body", d)
+
 
 @dataclass(frozen=True)
 class LightField:
@@ -65,6 +90,11 @@ class LightField:
         if len(set(names)) != len(names) or not all(isinstance(b, SceneBody) for b in bodies):
             raise SatsightError(f"bodies must be SceneBody objects, one per name; got {names}")
         object.__setattr__(self, "bodies", bodies)
+
+    @property
+    def sun(self) -> SunLight:
+        """The Sun alone, as the renderer lights the target with it (same direction bits)."""
+        return SunLight(self.sun_direction_body, self.sun_irradiance_w_m2)
 
     @property
     def l_max(self) -> int:

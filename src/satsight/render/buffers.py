@@ -25,22 +25,6 @@ def margin_pixels_xy(width: int, height: int, margin_px: int) -> tuple[np.ndarra
 
 
 @dataclass(frozen=True)
-class SunLight:
-    """The Sun as a collimated source.
-
-    direction_body: (3,) unit vector from the target toward the Sun, body frame.
-    irradiance_w_m2: in-band irradiance on a surface facing the Sun, W m^-2.
-    """
-
-    direction_body: np.ndarray
-    irradiance_w_m2: float
-
-    def __post_init__(self) -> None:
-        d = np.asarray(self.direction_body, dtype=np.float64).reshape(3)
-        object.__setattr__(self, "direction_body", d / np.linalg.norm(d))
-
-
-@dataclass(frozen=True)
 class RadianceImage:
     """One rendered frame, (H, W) images with pixel (0, 0) the top-left pixel centre.
 

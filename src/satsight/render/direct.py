@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import RigidTransform
-from satsight.lighting.light_field import LightField
-from satsight.render.buffers import RadianceImage, SunLight
+from satsight.lighting.light_field import LightField, SunLight
+from satsight.render.buffers import RadianceImage
 from satsight.render.renderer import Renderer
 from satsight.render.settings import DIRECT_SUN_ONLY
 from satsight.scene.mesh import TargetMesh

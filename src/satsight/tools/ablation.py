@@ -185,7 +185,7 @@ def run_ablation(
     track, indices = planned_frames(reference_scenario, mesh)
     if max_frames is not None:
         indices = indices[:max_frames]
-    lights = [frame_light(reference_scenario, track, i)[0] for i in indices]
+    lights = [frame_light(reference_scenario, track, i) for i in indices]
     # A frame without light (in the umbra, seeing only the Earth's night side) renders
     # black and has nothing to compare.
     lit = [

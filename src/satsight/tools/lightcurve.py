@@ -109,9 +109,9 @@ def run_lightcurve(
         range_m = float(np.linalg.norm(eye_body - center))
         camera = lightcurve_camera(range_m, mesh.bounding_radius_m, pitch, size_px)
         look = look_at_cam_from_body(eye_body, center, up_hint_body=_up_hint(eye_body - center))
-        light, sun = frame_light(scenario, track, plan_index)
+        light = frame_light(scenario, track, plan_index)
         image = renderer.render(camera, look, light, seed=frame_seed(scenario.seed, plan_index))
-        labels = frame_labels(mesh, camera, look, sun, image)
+        labels = frame_labels(mesh, camera, look, light.sun, image)
         sun_irradiance, sun_distance_m = engine.sun_irradiance_at_camera(plan_index)
         photometry = frame_photometry(
             image,
