@@ -245,3 +245,26 @@ def assert_peak_does_not_grow(small: MemoryPeak, large: MemoryPeak) -> None:
         f"the peak grew by {growth / 1e6:.2f} MB from {small.frames} to {large.frames} "
         f"frames, more than the {allowed / 1e6:.2f} MB allowed: {small}; {large}"
     )
+
+
+def export_memory_peaks(
+    datasets: tuple[Path, ...], out_root: Path, format_name: str
+) -> Iterator[tuple[Path, int, object, MemoryPeak]]:
+    """Export each dataset (80/10/10 split, preview images) under ``out_root`` with its
+    memory peak traced; yields (export folder, frame count, export summary, MemoryPeak)."""
+    from satsight.dataset.export import export_dataset
+    from satsight.dataset.export.splits import SplitRule
+
+    rule = SplitRule((0.8, 0.1, 0.1))
+    for dataset in datasets:
+        count = json.loads((dataset / "complete.json").read_text())["frame_count"]
+        records_bytes = held_records_bytes(dataset)
+        out = out_root / f"{format_name}_{count}"
+        summary, peak = traced_peak(
+            lambda dataset=dataset, out=out: export_dataset(
+                dataset, out, format_name, rule, image="preview"
+            )
+        )
+        train = count * 8 // 10
+        assert summary.split_sizes == {"train": train, "val": count // 10, "test": count // 10}
+        yield out, count, summary, MemoryPeak(count, peak, records_bytes)

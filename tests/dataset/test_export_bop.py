@@ -35,10 +35,8 @@ from satsight.dataset.image_files import read_png
 from satsight.dataset.preview import dn_preview_uint8
 from satsight.errors import SatsightError
 from synthetic_datasets import (
-    MemoryPeak,
     assert_peak_does_not_grow,
-    held_records_bytes,
-    traced_peak,
+    export_memory_peaks,
 )
 
 RULE = SplitRule((0.5, 0.25, 0.25), seed=0)
@@ -538,21 +536,10 @@ def test_export_memory_does_not_grow_with_the_frame_count(
     frame: the split holds frame indices, records are read per split, and the scene JSON
     files are written entry by entry."""
     peaks = []
-    for dataset in datasets_with_files:
-        count = json.loads((dataset / "complete.json").read_text())["frame_count"]
-        records_bytes = held_records_bytes(dataset)
-        out = tmp_path / f"bop_{count}"
-        rule = SplitRule((0.8, 0.1, 0.1))
-        summary, peak = traced_peak(
-            lambda dataset=dataset, out=out, rule=rule: export_dataset(
-                dataset, out, "bop", rule, image="preview"
-            )
-        )
-        train = count * 8 // 10
-        assert summary.split_sizes == {"train": train, "val": count // 10, "test": count // 10}
+    for out, count, _, peak in export_memory_peaks(datasets_with_files, tmp_path, "bop"):
         assert assert_json_as_written_at_once(out) == 3 * count
-        assert len(list((out / "train" / "000000" / "gray").iterdir())) == train
-        peaks.append(MemoryPeak(count, peak, records_bytes))
+        assert len(list((out / "train" / "000000" / "gray").iterdir())) == count * 8 // 10
+        peaks.append(peak)
     assert_peak_does_not_grow(*peaks)
     assert peaks[-1].peak_bytes < peaks[-1].records_bytes / 10, peaks[-1]
 

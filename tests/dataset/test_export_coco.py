@@ -37,10 +37,8 @@ from satsight.dataset.export.splits import SPLIT_NAMES, SplitRule, assign_splits
 from satsight.dataset.image_files import read_png
 from satsight.errors import SatsightError
 from synthetic_datasets import (
-    MemoryPeak,
     assert_peak_does_not_grow,
-    held_records_bytes,
-    traced_peak,
+    export_memory_peaks,
 )
 
 #: pycocotools' Cython decoder trips numpy 2's __array__(copy=...) deprecation (its own code).
@@ -482,20 +480,9 @@ def test_export_memory_does_not_grow_with_the_frame_count(
     the same memory peak, within a few bytes per frame: images and annotations are written
     entry by entry."""
     peaks = []
-    for dataset in datasets_with_files:
-        count = json.loads((dataset / "complete.json").read_text())["frame_count"]
-        records_bytes = held_records_bytes(dataset)
-        out = tmp_path / f"coco_{count}"
-        rule = SplitRule((0.8, 0.1, 0.1))
-        summary, peak = traced_peak(
-            lambda dataset=dataset, out=out, rule=rule: export_dataset(
-                dataset, out, "coco", rule, image="preview"
-            )
-        )
-        train = count * 8 // 10
-        assert summary.split_sizes == {"train": train, "val": count // 10, "test": count // 10}
+    for out, count, _, peak in export_memory_peaks(datasets_with_files, tmp_path, "coco"):
         annotations = json.loads((out / "annotations" / "instances_train.json").read_text())
-        assert len(annotations["images"]) == len(annotations["annotations"]) == train
-        peaks.append(MemoryPeak(count, peak, records_bytes))
+        assert len(annotations["images"]) == len(annotations["annotations"]) == count * 8 // 10
+        peaks.append(peak)
     assert_peak_does_not_grow(*peaks)
     assert peaks[-1].peak_bytes < peaks[-1].records_bytes / 10, peaks[-1]
