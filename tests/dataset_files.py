@@ -51,3 +51,13 @@ def write_scenario_yaml(folder: Path, scenario: dict) -> Path:
     path = folder / "scenario.yaml"
     path.write_text(yaml.safe_dump(scenario), encoding="utf-8")
     return path
+
+
+def generated_dataset(out: Path, scenario: dict) -> Path:
+    """The dataset of an uninterrupted local run of ``scenario`` in ``out`` (checked to be
+    complete); returns ``out``."""
+    from satsight.config.scenario import parse_scenario
+    from satsight.run.generation import generate_dataset
+
+    assert generate_dataset(parse_scenario(scenario), out).complete
+    return out

@@ -17,7 +17,7 @@ import satsight.dataset.image_files as image_files
 import satsight.dataset.journal as journal
 import satsight.dataset.manifest as manifest
 import satsight.dataset.merge as merge
-from dataset_files import file_hashes, views_scenario, write_scenario_yaml
+from dataset_files import file_hashes, generated_dataset, views_scenario, write_scenario_yaml
 from satsight.cli import main
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
@@ -43,9 +43,7 @@ def scenario_file(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory) -> Path:
     """The dataset of an uninterrupted run."""
-    out = tmp_path_factory.mktemp("reference") / "dataset"
-    assert generate_dataset(parse_scenario(scenario_dict()), out).complete
-    return out
+    return generated_dataset(tmp_path_factory.mktemp("reference") / "dataset", scenario_dict())
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from cli_runner import run_satsight
-from dataset_files import views_scenario, write_scenario_yaml
+from dataset_files import generated_dataset, views_scenario, write_scenario_yaml
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
 from satsight.dataset.lock import LOCK_NAME, WriterLock
@@ -43,9 +43,7 @@ def scenario_file(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def complete_dataset(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("complete") / "dataset"
-    assert generate_dataset(parse_scenario(scenario_dict()), out).complete
-    return out
+    return generated_dataset(tmp_path_factory.mktemp("complete") / "dataset", scenario_dict())
 
 
 def _start(*args: str) -> subprocess.Popen:

@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from cli_runner import run_satsight
-from dataset_files import file_hashes, write_scenario_yaml
+from dataset_files import file_hashes, generated_dataset, write_scenario_yaml
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.journal import read_journal
 from satsight.errors import SatsightError
@@ -58,8 +58,7 @@ def scenario_dict() -> dict:
 def reference_hashes(tmp_path_factory) -> dict[str, str]:
     """The files of a single-process run."""
     out = tmp_path_factory.mktemp("reference") / "dataset"
-    assert generate_dataset(parse_scenario(scenario_dict()), out).complete
-    return file_hashes(out)
+    return file_hashes(generated_dataset(out, scenario_dict()))
 
 
 @pytest.fixture(scope="module")
