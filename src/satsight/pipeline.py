@@ -342,7 +342,7 @@ class FrameEngine:
         self.keypoints_body_m = target_keypoints_body_m(
             self.mesh, scenario.target.keypoints.build()
         )
-        self.camera = scenario.camera.build()
+        self.camera = camera
         self.track, self.plan_indices = planned_frames(scenario, self.mesh)
         self.sensor = build_sensor(scenario)
         # Camera modes: "primary", and "far" beyond camera.far.switch_range_km.
