@@ -13,6 +13,7 @@ import numpy as np
 
 from satsight.errors import SatsightError
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_from_matrix
+from satsight.vectors import look_at_axes
 
 _ROTATION_TOLERANCE = 1e-6
 
@@ -96,8 +97,9 @@ def look_at_cam_from_body(
 
     The boresight +z points from the camera to ``target_point_body_m``. With zero roll the
     image "up" (-y) is the projection of ``up_hint_body`` on the image plane; ``roll_rad``
-    then turns the camera about its boresight (positive: right hand about +z). If the hint is
-    parallel to the boresight another axis is used.
+    then turns the camera about its boresight (positive: right hand about +z). The axes are
+    `satsight.vectors.look_at_axes` with the hint as reference for image up ("-y"); a hint
+    parallel to the boresight falls back to +z, then +x of the body frame.
     """
     c = np.asarray(camera_position_body_m, dtype=np.float64)
     target = np.asarray(target_point_body_m, dtype=np.float64)
@@ -111,28 +113,5 @@ def look_at_cam_from_body(
             raise SatsightError(f"{name} must be 3 finite numbers; got {v!r}")
     if not math.isfinite(roll_rad):
         raise SatsightError(f"roll_rad must be finite; got {roll_rad}")
-    forward = target - c
-    dist = np.linalg.norm(forward)
-    if dist <= 0.0:
-        raise SatsightError(
-            "camera position coincides with the point it should look at; place the camera "
-            "at a non-zero distance from the target"
-        )
-    z = forward / dist
-    # Image right (+x) is z x up, perpendicular to the hint's projection on the image plane
-    # (|z x up| is the length of that projection).
-    for candidate in (up, np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])):
-        x = np.cross(z, candidate)
-        if np.linalg.norm(x) > 1e-6 * max(np.linalg.norm(candidate), 1e-300):
-            break
-    # A hint close to the boresight leaves x with rounding error of relative size
-    # eps / sin(angle) along z: remove it so the axes stay orthonormal to ~1e-16.
-    x = x - np.dot(x, z) * z
-    x = x / np.linalg.norm(x)
-    y = np.cross(z, x)  # image down; -y is the projected hint
-    if roll_rad:
-        cr, sr = np.cos(roll_rad), np.sin(roll_rad)
-        x, y = cr * x + sr * y, -sr * x + cr * y
-    R_body_from_cam = np.stack([x, y, z], axis=1)
-    R_cam_from_body = R_body_from_cam.T
+    R_cam_from_body = look_at_axes(c, target, up, reference_axis="-y", roll_rad=roll_rad).T
     return RigidTransform(R_cam_from_body, -R_cam_from_body @ c)

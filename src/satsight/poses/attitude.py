@@ -41,15 +41,12 @@ from satsight.frames.quaternion import (
     quaternion_multiply,
     rotate_vectors,
 )
+from satsight.vectors import LOOK_AT_AXES, look_at_axes
 
 ROLL_POLICIES = ("orbit_normal", "zenith_up")
-REFERENCE_AXES = ("x", "-x", "y", "-y")
+REFERENCE_AXES = LOOK_AT_AXES
 
-# A reference direction closer than this (sine of the angle) to the boresight does not fix
-# the roll; the fallback axes of `pointing_gcrs_from_cam` are used instead.
-_PARALLEL_SINE = 1e-6
 _UNIT_TOLERANCE = 1e-6
-_FALLBACK_REFERENCES_GCRS = (np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
 
 
 def _vectors(value: np.ndarray, name: str) -> np.ndarray:
@@ -233,35 +230,10 @@ def pointing_gcrs_from_cam(
         [np.atleast_2d(observer), np.atleast_2d(target), np.atleast_2d(reference), roll[..., None]],
         ["observer_m", "target_m", "reference_gcrs", "roll_rad"],
     )
-    line_of_sight = target - observer
-    distance = np.linalg.norm(line_of_sight, axis=-1, keepdims=True)
-    if np.any(distance == 0.0):
-        raise SatsightError(
-            "the observer coincides with the point it should look at; place the camera at a "
-            "non-zero distance from the target"
-        )
-    z = line_of_sight / distance
-    reference_norm = np.linalg.norm(reference, axis=-1, keepdims=True)
-    if np.any(reference_norm == 0.0):
+    if np.any(np.linalg.norm(reference, axis=-1) == 0.0):
         raise SatsightError("reference_gcrs must be a non-zero direction in every row")
-    reference = reference / reference_norm
-    projected = reference - np.sum(reference * z, axis=-1, keepdims=True) * z
-    for fallback in _FALLBACK_REFERENCES_GCRS:
-        degenerate = np.linalg.norm(projected, axis=-1, keepdims=True) <= _PARALLEL_SINE
-        if not np.any(degenerate):
-            break
-        fallback_projected = fallback - np.sum(fallback * z, axis=-1, keepdims=True) * z
-        projected = np.where(degenerate, fallback_projected, projected)
-    p = projected / np.linalg.norm(projected, axis=-1, keepdims=True)
-    if reference_axis in ("x", "-x"):
-        x = p if reference_axis == "x" else -p
-        y = np.cross(z, x)
-    else:
-        y = p if reference_axis == "y" else -p
-        x = np.cross(y, z)
-    cos_roll, sin_roll = np.cos(roll_col), np.sin(roll_col)
-    x, y = cos_roll * x + sin_roll * y, -sin_roll * x + cos_roll * y
-    q = quaternion_from_matrix(np.stack([x, y, z], axis=-1))
+    R_gcrs_from_cam = look_at_axes(observer, target, reference, reference_axis, roll_col[:, 0])
+    q = quaternion_from_matrix(R_gcrs_from_cam)
     return q[0] if single else q
 
 
