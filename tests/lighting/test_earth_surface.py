@@ -45,6 +45,27 @@ def test_land_and_sea_where_the_map_of_the_world_has_them():
     assert np.average(land, weights=weights) == pytest.approx(148.9 / 510.1, abs=0.01)
 
 
+def test_the_land_fraction_is_read_once_and_cached_exactly(monkeypatch, tmp_path):
+    """The 0.1 deg cells' ocean sample counts are cached (uint8, exact): a second call reads
+    the cache, not the mask; a damaged cache file is rebuilt; the fraction is 1 - n / 144."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    rng = np.random.default_rng(3)
+    counts = rng.integers(0, 145, size=(1800, 3600)).astype(np.uint8)
+    reads = []
+    monkeypatch.setattr(earth_surface, "_ocean_counts", lambda path: reads.append(path) or counts)
+    first = land_fraction()
+    assert len(reads) == 1
+    np.testing.assert_array_equal(land_fraction(), first)
+    assert len(reads) == 1
+    assert first.dtype == np.float32
+    # Two float32 roundings (n / 144, then 1 - it): within one float32 ulp of 1.
+    np.testing.assert_allclose(first, 1.0 - counts / 144.0, rtol=0, atol=np.spacing(np.float32(1)))
+    (cache_file,) = (tmp_path / "satsight").glob("globe_ocean_counts_*.npz")
+    cache_file.write_bytes(b"not an npz")
+    np.testing.assert_array_equal(land_fraction(), first)
+    assert len(reads) == 2
+
+
 def test_the_default_map_has_the_bond_albedo_and_the_cloud_fraction():
     albedo_map = earth_albedo_map()
     assert map_mean_albedo(albedo_map) == pytest.approx(BOND_ALBEDO, abs=1e-3)
