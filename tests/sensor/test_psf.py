@@ -338,3 +338,18 @@ def test_frame_kernel_rejects_bad_sizes_and_sampling():
         frame_kernel(optics, BAND, None, PITCH_M, 41, 0, 1)
     with pytest.raises(SatsightError, match="samples_per_pixel"):
         frame_kernel(optics, BAND, None, PITCH_M, 41, 1, 0)
+
+
+@pytest.mark.parametrize(("shape", "kernel_shape"), [((33, 33), (33, 33)), ((40, 41), (7, 12))])
+def test_the_kernels_convolution_is_scipys_fftconvolve_bit_for_bit(shape, kernel_shape):
+    """The jitter and defocus convolutions of the PSF kernel give scipy.signal.fftconvolve's
+    values (mode "same") exactly, so the kernels keep their bits without scipy.signal."""
+    from scipy.signal import fftconvolve
+
+    from satsight.sensor.psf import _convolve_same
+
+    rng = np.random.default_rng(5)
+    image, kernel = rng.random(shape), rng.random(kernel_shape)
+    np.testing.assert_array_equal(
+        _convolve_same(image, kernel), fftconvolve(image, kernel, mode="same")
+    )

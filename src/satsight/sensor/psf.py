@@ -19,7 +19,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.signal import fftconvolve
+import scipy.fft
 from scipy.special import erf, j1
 
 from satsight.errors import SatsightError
@@ -150,7 +150,7 @@ def psf_kernel(
     sigma = optics.jitter_rms_m / pitch
     if sigma > 0.0:
         g = _gaussian_kernel_1d(sigma, radius)
-        kernel = fftconvolve(kernel, g[:, None] * g[None, :], mode="same")
+        kernel = _convolve_same(kernel, g[:, None] * g[None, :])
         kernel = np.maximum(kernel, 0.0)
     blur_samples = optics.defocus_blur_diameter_m / pitch
     if blur_samples > 1.0:
@@ -158,8 +158,20 @@ def psf_kernel(
         # onto the kernel, so the disc is cut there.
         half = min(math.ceil(0.5 * blur_samples + 0.5), 2 * radius)
         disc = _pillbox_kernel(blur_samples, half)
-        kernel = np.maximum(fftconvolve(kernel, disc, mode="same"), 0.0)
+        kernel = np.maximum(_convolve_same(kernel, disc), 0.0)
     return kernel / kernel.sum()
+
+
+def _convolve_same(image: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Linear convolution of two small 2-D arrays by real FFTs on 5-smooth lengths, the
+    central ``image.shape`` part ("same" size); the values of scipy.signal.fftconvolve
+    (mode "same"), bit for bit, without importing scipy.signal (0.4 s at start-up)."""
+    full_shape = [n + m - 1 for n, m in zip(image.shape, kernel.shape, strict=True)]
+    fft_shape = [scipy.fft.next_fast_len(n, True) for n in full_shape]
+    spectrum = scipy.fft.rfftn(image, fft_shape) * scipy.fft.rfftn(kernel, fft_shape)
+    full = scipy.fft.irfftn(spectrum, fft_shape)[: full_shape[0], : full_shape[1]]
+    top, left = ((f - n) // 2 for f, n in zip(full_shape, image.shape, strict=True))
+    return full[top : top + image.shape[0], left : left + image.shape[1]]
 
 
 def frame_kernel(
