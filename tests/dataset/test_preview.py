@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from satsight.dataset.preview import (
+    CONTACT_CELL_PX,
     DEFAULT_ASINH_SOFTENING_DN,
     DN_PREVIEW_STRETCH,
     PREVIEW_GAMMA,
@@ -17,6 +18,7 @@ from satsight.dataset.preview import (
     dn_preview_asinh_uint8,
     dn_preview_uint8,
     thumbnail,
+    write_contact_sheet,
 )
 from satsight.errors import SatsightError
 from satsight.sensor.detector import DetectorParameters
@@ -243,3 +245,42 @@ def test_thumbnail_range_is_zero_to_one(rng) -> None:
     assert small.shape == (51, 26, 3)  # step ceil(257 / 64) = 5
     assert small.min() >= 0.0 and small.max() <= 1.0
     assert small.max() == 1.0
+
+
+@pytest.mark.parametrize(("count", "cols"), [(1, 1), (5, 3), (10, 6)])
+def test_contact_sheet_places_every_thumbnail_in_its_cell_with_a_caption(tmp_path, count, cols):
+    """Each thumbnail a flat grey (its own level) with one white pixel: the sheet is
+    CONTACT_CELL_PX per cell, each cell shows its grey over a whole block of pixels and
+    the white pixel enlarged to a square, and the caption band above the image has ink."""
+    from PIL import Image
+
+    levels = np.linspace(0.1, 0.6, count)
+    thumbnails = []
+    for level in levels:
+        image = np.full((24, 32), level)
+        image[5, 7] = 1.0
+        thumbnails.append(image)
+    path = tmp_path / "sheet.png"
+    write_contact_sheet(path, thumbnails, [f"#{i}\nline two" for i in range(count)], "heading")
+    rows = -(-count // cols)
+    cell_w, cell_h = CONTACT_CELL_PX
+    with Image.open(path) as image:
+        sheet = np.asarray(image.convert("L"))
+    assert sheet.shape == (rows * cell_h, cols * cell_w)
+    assert sheet[:10].min() == 255 and (sheet[:40] < 128).any()  # the heading's ink
+    for index, level in enumerate(levels):
+        row, col = divmod(index, cols)
+        cell = sheet[row * cell_h : (row + 1) * cell_h, col * cell_w : (col + 1) * cell_w]
+        grey = round(255 * level)
+        # The thumbnail's rows and columns: full of its grey (anti-aliased caption ink may
+        # hit the level in a few scattered pixels, never along a whole row).
+        flat = cell == grey
+        ys = np.nonzero(flat.sum(axis=1) > 16)[0]
+        xs = np.nonzero(flat.sum(axis=0) > 12)[0]
+        assert ys.size and xs.size, index
+        scale = (xs.max() - xs.min() + 1) / 32
+        assert scale == int(scale) and scale >= 2 and (ys.max() - ys.min() + 1) == 24 * scale
+        block = cell[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+        white = np.argwhere(block == 255)
+        assert len(white) == scale**2 and tuple(white.min(axis=0)) == (5 * scale, 7 * scale)
+        assert (cell[: ys.min()] < 128).any()  # the caption above it

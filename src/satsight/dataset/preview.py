@@ -164,29 +164,63 @@ def thumbnail(radiance_w_m2_sr: np.ndarray, max_side_px: int = 512) -> np.ndarra
     return np.clip(small, 0.0, 1.0)
 
 
+#: The contact sheet's cell, px: 4.2 x 4.8 inches at 100 dpi, a caption above each image.
+CONTACT_CELL_PX = (420, 480)
+_CAPTION_FONT_PX = 13
+_HEADING_FONT_PX = 17
+_MARGIN_PX = 8
+
+
 def write_contact_sheet(
     path: Path, thumbnails: list[np.ndarray], titles: list[str], heading: str
 ) -> None:
-    """A grid of frame thumbnails with one caption each, saved as PNG."""
-    import matplotlib
+    """A grid of frame thumbnails with one caption each, saved as PNG.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Three cells to a row (six beyond nine frames) of `CONTACT_CELL_PX`; a two-line heading on
+    top. Each thumbnail, values in [0, 1], is shown in grey (round(255 v)), enlarged by the
+    largest whole factor that fits its cell (nearest neighbour, so every thumbnail pixel is
+    a square of equal pixels), or shrunk to fit. Drawn with Pillow alone.
+    """
+    from PIL import Image, ImageDraw, ImageFont
 
     count = len(thumbnails)
     cols = min(count, 3 if count <= 9 else 6)
     rows = int(np.ceil(count / cols))
-    fig, axes = plt.subplots(
-        rows, cols, figsize=(4.2 * cols, 4.8 * rows), squeeze=False, layout="constrained"
-    )
-    for ax in axes.ravel():
-        ax.axis("off")
-    for ax, image, title in zip(axes.ravel(), thumbnails, titles, strict=False):
-        ax.imshow(image, interpolation="nearest", cmap="gray", vmin=0.0, vmax=1.0)
-        ax.set_title(title, fontsize=9)
-    fig.suptitle(
+    cell_w, cell_h = CONTACT_CELL_PX
+    caption_font = ImageFont.load_default(size=_CAPTION_FONT_PX)
+    heading_font = ImageFont.load_default(size=_HEADING_FONT_PX)
+    heading_text = (
         heading + "\n(crops around the target, DN above the bias; each scaled to its own "
         f"maximum, display gamma {PREVIEW_GAMMA})"
     )
-    fig.savefig(path, dpi=100, facecolor="white")
-    plt.close(fig)
+    sheet = Image.new("L", (cols * cell_w, rows * cell_h), 255)
+    draw = ImageDraw.Draw(sheet)
+    box = draw.multiline_textbbox((0, 0), heading_text, font=heading_font, spacing=4)
+    heading_h = box[3] - box[1] + 2 * _MARGIN_PX
+    draw.multiline_text(
+        (sheet.width // 2, _MARGIN_PX), heading_text, fill=0, font=heading_font,
+        anchor="ma", align="center", spacing=4,
+    )  # fmt: skip
+    row_h = (sheet.height - heading_h) // rows
+    for index, (image, title) in enumerate(zip(thumbnails, titles, strict=False)):
+        row, col = divmod(index, cols)
+        left, top = col * cell_w, heading_h + row * row_h
+        draw.multiline_text(
+            (left + cell_w // 2, top + _MARGIN_PX // 2), title, fill=0, font=caption_font,
+            anchor="ma", align="center", spacing=2,
+        )  # fmt: skip
+        caption = draw.multiline_textbbox((0, 0), title, font=caption_font, spacing=2)
+        image_top = top + _MARGIN_PX + caption[3] - caption[1] + _MARGIN_PX // 2
+        room_w = cell_w - 2 * _MARGIN_PX
+        room_h = top + row_h - _MARGIN_PX - image_top
+        grey = np.round(255.0 * np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0))
+        thumb = Image.fromarray(grey.astype(np.uint8))
+        scale = min(room_w / thumb.width, room_h / thumb.height)
+        if scale >= 1.0:
+            scale = float(int(scale))
+        size = (max(1, int(thumb.width * scale)), max(1, int(thumb.height * scale)))
+        thumb = thumb.resize(
+            size, Image.Resampling.NEAREST if scale >= 1.0 else Image.Resampling.BOX
+        )
+        sheet.paste(thumb, (left + (cell_w - size[0]) // 2, image_top + (room_h - size[1]) // 2))
+    sheet.save(path, optimize=False)
