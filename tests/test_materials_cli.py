@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgba
 
-from cli_runner import run_satsight
+from cli_runner import invoke_satsight, run_satsight
 from figure_checks import check_plane_of_incidence_figure, figure_pixels, has_colour
 from satsight.scene.band_reflectance import material_rgb_reflectance
 from satsight.scene.material_library import load_library
@@ -102,7 +102,7 @@ def test_fit_brdf_names_the_bad_line(tmp_path: Path) -> None:
         "10,0,20,180,V,0.3\n10,0,x,180,V,0.3\n",
         encoding="utf-8",
     )
-    result = run_satsight("fit-brdf", str(bad), "--model", "phong", "--out", "fit", cwd=tmp_path)
+    result = invoke_satsight("fit-brdf", str(bad), "--model", "phong", "--out", "fit", cwd=tmp_path)
     assert result.returncode == 2
     assert "line 3" in result.stderr and "theta_o_deg" in result.stderr
     assert "Traceback" not in result.stderr

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from cli_runner import run_satsight
+from cli_runner import invoke_satsight, run_satsight
 from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
 from satsight.pipeline import build_target
@@ -20,7 +20,8 @@ EXAMPLES = example_scenario_path().parent
 SMALL_CAMERA = {"preset": "wide_field", "width_px": 96, "height_px": 96}
 
 
-_satsight = run_satsight
+# The command in this interpreter; the first test runs it as a child process, as a user does.
+_satsight = invoke_satsight
 
 
 def _write(tmp_path: Path, name: str, data: dict) -> Path:
@@ -51,7 +52,8 @@ def test_examples_plan(example: str, frames: int) -> None:
 
 def test_plan_prints_the_table_and_writes_csv_and_plots(tmp_path: Path) -> None:
     out = tmp_path / "plan"
-    result = _satsight("plan", str(EXAMPLES / "fly_around.yaml"), "--out", str(out), cwd=tmp_path)
+    example = str(EXAMPLES / "fly_around.yaml")
+    result = run_satsight("plan", example, "--out", str(out), cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert "frame plan of 'fly-around'" in result.stdout
     assert "72 frames planned" in result.stderr

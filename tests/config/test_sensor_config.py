@@ -7,7 +7,7 @@ import copy
 import pytest
 import yaml
 
-from cli_runner import run_satsight
+from cli_runner import invoke_satsight
 from satsight.config.scenario import parse_scenario
 from satsight.errors import SatsightError
 from satsight.sensor.detector import DetectorParameters
@@ -91,7 +91,7 @@ def test_a_bad_sensor_value_stops_the_command_with_a_message(tmp_path, detector,
     data["camera"] = {"detector": detector}
     config = tmp_path / "bad_sensor.yaml"
     config.write_text(yaml.safe_dump(data), encoding="utf-8")
-    result = run_satsight("plan", str(config), "--no-plots", cwd=tmp_path)
+    result = invoke_satsight("plan", str(config), "--no-plots", cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     assert message in result.stderr
     assert "Traceback" not in result.stderr

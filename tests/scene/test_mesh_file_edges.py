@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 from PIL import Image
-from tests.cli_runner import run_satsight
+from tests.cli_runner import invoke_satsight, run_satsight
 from tests.scene.test_surface_loading import png_bytes, test_pixels, textured_plate_glb
 
 from satsight.config.target import MeshTargetConfig
@@ -299,7 +299,7 @@ def assert_refused(result, *phrases: str) -> None:
 def test_cli_refuses_index_zero_with_the_line(tmp_path: Path) -> None:
     (tmp_path / "zero.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
     config = scenario_file(tmp_path, tmp_path / "zero.obj")
-    result = run_satsight("generate", str(config), "--out", "ds", cwd=tmp_path)
+    result = invoke_satsight("generate", str(config), "--out", "ds", cwd=tmp_path)
     assert_refused(result, "zero.obj, line 4 ('f 0 1 2'): vertex index 0")
     assert not list((tmp_path / "ds").glob("**/*.png"))
 
