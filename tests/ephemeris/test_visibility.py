@@ -756,3 +756,49 @@ def test_single_vectors_give_length_one_arrays() -> None:
     assert result.visible[0]
     with pytest.raises(SatsightError, match="VisibilityLimits"):
         assess_visibility(X * 7e6, Y * 7e6, AU_M * X, limits={"atmosphere_margin_m": 0.0})
+
+
+def test_assess_visibility_can_take_the_drawn_sphere_instead_of_the_ellipsoid() -> None:
+    """``earth_sphere_radius_m`` makes the Earth that sphere for the line of sight and the
+    shadow, whatever the orientation says. In the equatorial plane (ITRS = GCRS here) the
+    ellipsoid's limb is a = R1 + 7.1 km, so the two models part by closed forms."""
+    from satsight.constants import EARTH_MEAN_RADIUS_M
+
+    identity = np.eye(3)
+    # A line of sight whose lowest point is 10 km above the mean sphere, in the equator.
+    h = 10.0 * KM
+    low = (EARTH_MEAN_RADIUS_M + h) * X
+    observer, target = low - 2000.0 * KM * Y, low + 2000.0 * KM * Y
+    sun = AU_M * Y  # far from both ends' shadows
+    on_sphere = assess_visibility(
+        target, observer, sun, R_itrs_from_gcrs=identity, earth_sphere_radius_m=EARTH_MEAN_RADIUS_M
+    )
+    on_ellipsoid = assess_visibility(target, observer, sun, R_itrs_from_gcrs=identity)
+    assert on_sphere.los_clearance_m[0] == pytest.approx(h, abs=ONE_UM)
+    assert on_ellipsoid.los_clearance_m[0] == pytest.approx(
+        EARTH_MEAN_RADIUS_M + h - R_EARTH, abs=1e-3
+    )
+    # A target behind the Earth whose line to the Sun's centre passes 1 km above the mean
+    # sphere: more than half the solar disc shows over the sphere's limb, less than half over
+    # the ellipsoid's (which stands 6.1 km above that line).
+    sun_far = AU_M * X
+    target_shadow = -2000.0 * KM * X + (EARTH_MEAN_RADIUS_M + 1.0 * KM) * Y
+    # The line from the target to the Sun's centre is nearly parallel to x: its distance from
+    # the centre is |p x u|; solve the small tilt so that it is R1 + 1 km.
+    u = (sun_far - target_shadow) / np.linalg.norm(sun_far - target_shadow)
+    miss = float(np.linalg.norm(np.cross(target_shadow, u)))
+    target_shadow = target_shadow * (EARTH_MEAN_RADIUS_M + 1.0 * KM) / miss
+    fraction_sphere = assess_visibility(
+        target_shadow,
+        target_shadow + 10.0 * KM * Z,
+        sun_far,
+        R_itrs_from_gcrs=identity,
+        earth_sphere_radius_m=EARTH_MEAN_RADIUS_M,
+    ).sunlit_fraction[0]
+    fraction_ellipsoid = assess_visibility(
+        target_shadow, target_shadow + 10.0 * KM * Z, sun_far, R_itrs_from_gcrs=identity
+    ).sunlit_fraction[0]
+    assert 0.5 < fraction_sphere < 1.0
+    assert 0.0 < fraction_ellipsoid < 0.5
+    with pytest.raises(SatsightError, match="earth_sphere_radius_m must be a finite length"):
+        assess_visibility(target, observer, sun, earth_sphere_radius_m=-1.0)

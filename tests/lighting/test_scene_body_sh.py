@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from satsight.constants import WGS84_SEMI_MAJOR_AXIS_M
+from satsight.constants import EARTH_MEAN_RADIUS_M, WGS84_SEMI_MAJOR_AXIS_M
 from satsight.lighting import sh
 from satsight.lighting.bodies import (
     DEFAULT_SH_NODES,
@@ -93,13 +93,14 @@ def test_textured_ellipsoid_projection_matches_a_whole_sphere_lattice(altitude_m
 
 def test_a_uniform_sphere_gives_the_sphere_projection() -> None:
     """With no map and a spherical shape the body is the uniform sphere of ``body_sh``: the
-    same quadrature nodes give the same coefficients (terminator across the disc)."""
-    center = np.array([0.0, 0.0, -(WGS84_SEMI_MAJOR_AXIS_M + 700e3)])
+    same quadrature nodes give the same coefficients (terminator across the disc). The
+    sphere's default radius is the mean radius R1."""
+    center = np.array([0.0, 0.0, -(EARTH_MEAN_RADIUS_M + 700e3)])
     sun = np.array([0.95, 0.0, 0.3])
     body = earth_body(center, np.eye(3), 0.3, sun, E_SUN_W_M2, shape="sphere")
     np.testing.assert_allclose(
         scene_body_sh(body, l_max=6, n_nodes=DEFAULT_SH_NODES),
-        body_sh(center, WGS84_SEMI_MAJOR_AXIS_M, sun, 0.3, E_SUN_W_M2, l_max=6),
+        body_sh(center, EARTH_MEAN_RADIUS_M, sun, 0.3, E_SUN_W_M2, l_max=6),
         rtol=0,
         atol=1e-12 * E_SUN_W_M2,
     )

@@ -20,7 +20,11 @@ import pytest
 
 from builders import plate_parts
 from satsight.camera.pinhole import PinholeCamera
-from satsight.constants import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
+from satsight.constants import (
+    EARTH_MEAN_RADIUS_M,
+    WGS84_SEMI_MAJOR_AXIS_M,
+    WGS84_SEMI_MINOR_AXIS_M,
+)
 from satsight.frames.rigid import look_at_cam_from_body
 from satsight.lighting.light_field import LightField
 from satsight.lighting.scene_bodies import BACKGROUND_EARTH, earth_body
@@ -32,7 +36,8 @@ from satsight.scene.mesh import merge_parts
 E_SUN_W_M2 = 1000.0
 EARTH_ALBEDO = 0.3
 PLATE_RHO = 0.5
-R_EARTH_M = WGS84_SEMI_MAJOR_AXIS_M
+# The radius of earth_body(shape="sphere"): the mean radius R1.
+R_EARTH_M = EARTH_MEAN_RADIUS_M
 
 
 def _plate_mesh():

@@ -66,7 +66,13 @@ class EarthConfig(_Strict):
     """The Earth seen from the target: direction of its centre (body frame), altitude of
     the target above the mean sphere, and a Lambertian albedo (scalar or per channel; the
     SH light field's, and the body's with ``surface: uniform``), its surface (albedo map or
-    uniform) and shape (WGS-84 ellipsoid or sphere) as a body in the scene."""
+    uniform) and shape as a body in the scene.
+
+    ``shape: sphere`` is the mean sphere, radius R1 = ``EARTH_MEAN_RADIUS_M`` (6 371 008.8
+    m), the sphere ``altitude_km`` is measured from: the target is exactly ``altitude_km``
+    above the drawn and lit surface. ``shape: wgs84`` is the ellipsoid (a = 6 378 137 m,
+    b = 6 356 752 m), centred at the same point, so its surface below the target lies
+    between 7.1 km above and 14.3 km below the mean sphere."""
 
     azimuth_deg: float = 0.0
     elevation_deg: float = Field(default=-90.0, ge=-90, le=90)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from satsight.ephemeris.geometry import finish, require_nonzero, stack
+from satsight.ephemeris.geometry import finish, positive_length, require_nonzero, stack
 from satsight.ephemeris.occultation import DEFAULT_ATMOSPHERE_MARGIN_M, los_clearance_m
 from satsight.ephemeris.shadow import sunlit_fraction
 from satsight.errors import SatsightError
@@ -203,6 +203,7 @@ def assess_visibility(
     sun_m: ArrayLike,
     limits: VisibilityLimits | None = None,
     R_itrs_from_gcrs: ArrayLike | None = None,
+    earth_sphere_radius_m: float | None = None,
 ) -> FrameVisibility:
     """Visibility geometry and flags of N frames.
 
@@ -210,7 +211,10 @@ def assess_visibility(
     or (N, 3); all (3,) gives N = 1. limits: thresholds (default ``VisibilityLimits()``).
     R_itrs_from_gcrs: the Earth's orientation at each frame, (3, 3) or (N, 3, 3) with
     ``x_itrs = R_itrs_from_gcrs @ x_gcrs``; given, the Earth is the WGS-84 ellipsoid for the
-    line of sight and the shadow; None, the sphere of radius a.
+    line of sight and the shadow; None, the sphere of radius a. earth_sphere_radius_m: the
+    Earth as a sphere of this radius, m, for the line of sight and the shadow, whatever
+    R_itrs_from_gcrs says (a scenario's ``earth.shape: sphere`` draws the mean sphere
+    R1 = 6 371 008.8 m; passing it keeps the shadow and the occultation on the drawn Earth).
     Flags: earth_occulted where los_clearance_m < atmosphere_margin_m; eclipsed where
     sunlit_fraction < min_sunlit_fraction - SUNLIT_FRACTION_TOLERANCE; sun_excluded where
     sun_boresight_angle_rad < sun_exclusion_rad; phase_rejected where the phase angle is
@@ -225,8 +229,13 @@ def assess_visibility(
     (target, observer, sun), R, _ = stack(
         R_itrs_from_gcrs, target_m=target_m, observer_m=observer_m, sun_m=sun_m
     )
-    clearance = np.asarray(los_clearance_m(observer, target, R_itrs_from_gcrs=R))
-    fraction = np.asarray(sunlit_fraction(target, sun, R_itrs_from_gcrs=R))
+    if earth_sphere_radius_m is None:
+        clearance = np.asarray(los_clearance_m(observer, target, R_itrs_from_gcrs=R))
+        fraction = np.asarray(sunlit_fraction(target, sun, R_itrs_from_gcrs=R))
+    else:
+        radius = positive_length(earth_sphere_radius_m, "earth_sphere_radius_m")
+        clearance = np.asarray(los_clearance_m(observer, target, body_radius_m=radius))
+        fraction = np.asarray(sunlit_fraction(target, sun, earth_radius_m=radius))
     boresight = np.asarray(sun_boresight_angle_rad(observer, target, sun))
     phase = np.asarray(phase_angle_rad(target, observer, sun))
     return FrameVisibility(

@@ -19,8 +19,9 @@ fixed frame (the Earth's ITRS, or a stand-in when a scenario has no epoch) is gi
 ``R_body_from_fixed``.
 
 Sources: WGS-84 semi-axes a = 6 378 137 m, 1/f = 298.257223563 (NIMA TR8350.2, 3rd ed.,
-2000, Table 3.1); Moon mean radius 1 737.4 km (Archinal et al. 2011, Celest. Mech. Dyn.
-Astron. 109, 101).
+2000, Table 3.1); the spherical Earth's default radius, the mean radius R1 = 6 371 008.8 m
+(Moritz 1980, Geodetic Reference System 1980); Moon mean radius 1 737.4 km (Archinal et
+al. 2011, Celest. Mech. Dyn. Astron. 109, 101).
 """
 
 from __future__ import annotations
@@ -30,7 +31,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from satsight.constants import WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M
+from satsight.constants import (
+    EARTH_MEAN_RADIUS_M,
+    WGS84_SEMI_MAJOR_AXIS_M,
+    WGS84_SEMI_MINOR_AXIS_M,
+)
 from satsight.errors import SatsightError
 
 #: Background label values: what a pixel-centre ray that misses the target meets.
@@ -181,16 +186,27 @@ def earth_body(
     sun_irradiance_w_m2: float,
     albedo_map: AlbedoMap | None = None,
     shape: str = "wgs84",
+    sphere_radius_m: float = EARTH_MEAN_RADIUS_M,
 ) -> SceneBody:
-    """The Earth as the WGS-84 ellipsoid (``shape="wgs84"``) or as a sphere of the WGS-84
-    equatorial radius (``"sphere"``)."""
+    """The Earth as the WGS-84 ellipsoid (``shape="wgs84"``) or as a sphere of radius
+    ``sphere_radius_m`` (``"sphere"``; default the mean radius R1 = 6 371 008.8 m, the
+    sphere above which a scenario's ``earth.altitude_km`` places the target). The sphere's
+    radius is ignored for the ellipsoid."""
     if shape not in ("wgs84", "sphere"):
         raise SatsightError(f"earth shape must be 'wgs84' or 'sphere', got {shape!r}")
-    b = WGS84_SEMI_MINOR_AXIS_M if shape == "wgs84" else WGS84_SEMI_MAJOR_AXIS_M
+    if shape == "sphere":
+        radius = float(sphere_radius_m)
+        if not (math.isfinite(radius) and radius > 0.0):
+            raise SatsightError(
+                f"the spherical Earth's radius must be finite and > 0 m, got {sphere_radius_m}"
+            )
+        axes = np.full(3, radius)
+    else:
+        axes = np.array([WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MINOR_AXIS_M])
     return SceneBody(
         "earth",
         center_body_m,
-        np.array([WGS84_SEMI_MAJOR_AXIS_M, WGS84_SEMI_MAJOR_AXIS_M, b]),
+        axes,
         R_body_from_itrs,
         albedo_rgb,
         sun_direction_body,
