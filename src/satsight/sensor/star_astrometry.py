@@ -166,15 +166,17 @@ def cross_match(
     radius_rad: float,
     max_delta_mag: float,
     k: int = 4,
+    tree_b: cKDTree | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One-to-one pairs between two lists of unit vectors (Na, 3), (Nb, 3).
 
     A pair needs a separation below ``radius_rad`` and |mag_a - mag_b| < max_delta_mag; among
     the k nearest candidates of each star of list a, pairs are taken closest first and each
     star is used at most once (greedy assignment). Returns (index_a, index_b,
-    separation_rad), each (P,).
+    separation_rad), each (P,). ``tree_b``: a ``cKDTree`` of ``u_b`` already built (saves
+    ~0.2 s for the 480 000 Gaia sources when several matches share it).
     """
-    tree = cKDTree(u_b)
+    tree = cKDTree(u_b) if tree_b is None else tree_b
     chord = 2.0 * math.sin(0.5 * radius_rad)
     dist, idx = tree.query(u_a, k=k, distance_upper_bound=chord)
     ia = np.repeat(np.arange(u_a.shape[0]), k)

