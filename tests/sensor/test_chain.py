@@ -230,14 +230,15 @@ def test_light_outside_the_object_mask_is_kept() -> None:
     irradiance = chain.focal_plane_irradiance_w_m2(image)
     optics = chain.optics
     expected = 70.0 * math.pi * optics.transmission / (4 * optics.f_number**2)
-    # The kernel spreads it; the sum over the frame keeps it (far from the edges), plus what
-    # clipping the kernel's negative side lobes at 0 adds to an isolated bright pixel (their
-    # share, 8 % at f/10 with one centre sample per pixel; see frame_kernel).
+    # The kernel spreads it; the sum over the frame keeps it (far from the edges): the dips
+    # of its negative side lobes (8.9 % of the power at f/10) are taken back from the pixels
+    # around them, not clipped (which read this lone pixel 8.9 % bright). Bound: float32
+    # round-off of the sums, 1e-5.
     kernel = chain.psf.astype(np.float64)
     assert kernel.sum() == pytest.approx(1.0, abs=1e-6)
-    lobes = float(-kernel[kernel < 0].sum())
-    assert 0.07 < lobes < 0.09
-    assert float(irradiance.sum()) == pytest.approx(expected * (1 + lobes), rel=1e-5)
+    assert float(-kernel[kernel < 0].sum()) > 0.07
+    assert irradiance.min() >= 0.0
+    assert float(irradiance.sum()) == pytest.approx(expected, rel=1e-5)
 
 
 def _with_ring(radiance_rgb: np.ndarray, margin_px: int) -> RadianceImage:

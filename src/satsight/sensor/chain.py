@@ -54,11 +54,9 @@ from satsight.sensor.optics import Optics, focal_plane_irradiance_w_m2
 from satsight.sensor.psf import frame_kernel
 
 #: Side of the kernel applied to rendered frames, pixels (odd). The kernel's response is the
-#: system OTF over the pixel Nyquist square; its taps fall off as 1 / m^2 (the response's
-#: kink at Nyquist), and cutting them at a half-width of R = 20 px raises the response at
-#: Nyquist by 1.5 % (f/7) to 1.8 % (f/10), by < 0.7 % up to 0.95 x Nyquist (R = 7, a 15 px
-#: kernel: 4.0-4.7 %); see ``frame_kernel``. A defocus blur disc and jitter widen it
-#: (``psf_size_px``).
+#: system OTF over the pixel Nyquist square, fitted on R = 20 taps each side: within 0.6 %
+#: along the axes up to and including Nyquist (``frame_kernel``). A defocus blur disc and
+#: jitter widen it (``psf_size_px``).
 PSF_SIZE_PX = 41
 
 
