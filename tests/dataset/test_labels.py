@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -124,7 +125,28 @@ def test_frame_labels_closed_forms() -> None:
     q = np.array(labels["q_cam_from_body"])
     assert q[0] >= 0 and np.linalg.norm(q) == pytest.approx(1.0, abs=1e-12)
     np.testing.assert_allclose(labels["t_cam_from_body_m"], cam_from_body.t_a_from_b_m)
+    # No footprint grid in this image: the label says its pixels are pixel-centre values.
+    assert labels["target_footprint"] == {"integrated": False}
     json.dumps(labels)  # JSON-ready
+
+
+def test_frame_labels_carry_the_footprint_of_a_small_target() -> None:
+    """The renderer's footprint record (integrated box, sub-pixel flag, grid) reaches the
+    frame's labels as it is."""
+    mesh = _cube_mesh(np.zeros(3))
+    camera = PinholeCamera(focal_length_m=0.5, pixel_pitch_m=10e-6, width_px=40, height_px=30)
+    cam_from_body = View(1000.0, 0.0, 0.0).cam_from_body(mesh.center_m)
+    footprint = {
+        "integrated": True,
+        "projected_box_xyxy_px": [19.0, 14.0, 20.0, 15.0],
+        "sub_pixel": False,
+        "sample_spacing_px": [0.01, 0.01],
+        "sample_count": 10000,
+    }
+    image = dataclasses.replace(_image(np.zeros((30, 40), dtype=bool)), footprint=footprint)
+    labels = frame_labels(mesh, camera, cam_from_body, SunLight(np.ones(3), 1.0), image)
+    assert labels["target_footprint"] == footprint
+    assert labels["object_pixel_count"] == 0
 
 
 @pytest.mark.parametrize(

@@ -289,8 +289,10 @@ def test_textured_lambert_plate_radiance_follows_its_texture(
     pose = look_at_cam_from_body(
         DISTANCE_M * np.array([0.2, -0.1, 1.0]), np.zeros(3), up_hint_body=np.array([0, 1.0, 0])
     )
-    renderer = Renderer(mesh, DIRECT_SUN_ONLY.with_(brdf=brdf), llvm_variant)
-    image = renderer.render(image_px, pose, light)
+    # The texture at each pixel centre (the footprint grid, which averages it over the
+    # pixel, off).
+    settings = DIRECT_SUN_ONLY.with_(brdf=brdf, integrate_footprint=False)
+    image = Renderer(mesh, settings, llvm_variant).render(image_px, pose, light)
     p, on = _plate_hits(image_px, pose)
     uv = (p[on, :2] + 1.0) / 2.0 * tiles
     texture = reference_texture(TEXTURE, uv, wrap)
@@ -333,7 +335,9 @@ def test_loaded_obj_plate_renders_its_map_kd(llvm_variant, tmp_path: Path):
     pose = look_at_cam_from_body(
         DISTANCE_M * np.array([0.0, 0.0, 1.0]), np.zeros(3), up_hint_body=np.array([0, 1.0, 0])
     )
-    image = DirectRenderer(mesh, llvm_variant).render(camera, pose, sun)
+    renderer = DirectRenderer(mesh, llvm_variant)
+    renderer.settings = renderer.settings.with_(integrate_footprint=False)  # pixel centres
+    image = renderer.render(camera, pose, sun)
     p, on = _plate_hits(camera, pose)
     uv = (p[on, :2] + 1.0) / 2.0
     # MTL roughness defaults to 0.5 with GGX; Ni 1 leaves the diffuse part only.

@@ -164,6 +164,7 @@ class RenderConfig(_Strict):
     samples_per_pixel: int = Field(default=1, ge=1, le=4096)
     supersampling: int = Field(default=1, ge=1, le=8)
     indirect_min_roughness: float = Field(default=0.35, ge=0.0, le=1.0)
+    integrate_footprint: bool = True
     variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
 
     def settings(self) -> RenderSettings:
@@ -177,6 +178,7 @@ class RenderConfig(_Strict):
             samples_per_pixel=self.samples_per_pixel,
             supersampling=self.supersampling,
             indirect_min_roughness=self.indirect_min_roughness,
+            integrate_footprint=self.integrate_footprint,
         )
 
 

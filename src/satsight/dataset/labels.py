@@ -97,7 +97,9 @@ def frame_labels(
     docstring), box_keypoints_px and box_keypoints_depth_m (the bounding box's corners then
     centre, ``TargetMesh.box_keypoints_body_m``), object_pixel_count,
     visible_pixel_fraction (object pixels / image pixels), truncated (mask touches the
-    image border).
+    image border), target_footprint (whether the radiance of a small target's pixels was
+    integrated over their area, ``satsight.render.footprint``: its projected box, whether
+    it is sub-pixel, the grid's spacing and size; ``{"integrated": false}`` otherwise).
     """
     mask = image.object_mask
     box_cam = cam_from_body.apply(mesh.box_keypoints_body_m)
@@ -131,6 +133,7 @@ def frame_labels(
         "object_pixel_count": count,
         "visible_pixel_fraction": count / mask.size,
         "truncated": bool(border),
+        "target_footprint": image.footprint or {"integrated": False},
     }
 
 

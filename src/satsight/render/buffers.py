@@ -36,7 +36,8 @@ class RadianceImage:
     margin_px, margin_radiance_w_m2_sr: the radiance (n, 3) of the pixels of a ring
     ``margin_px`` wide around the frame, in ``margin_pixels_xy`` order (None without one).
     background_id: (H, W) uint8 body seen behind the target (see ``background_mask``),
-    None when no body is in view.
+    None when no body is in view. footprint: the label of the fine grid whose integral
+    replaced the pixels of a small target (``satsight.render.footprint``), None without.
     """
 
     radiance_w_m2_sr: np.ndarray
@@ -46,6 +47,7 @@ class RadianceImage:
     margin_px: int = 0
     margin_radiance_w_m2_sr: np.ndarray | None = None
     background_id: np.ndarray | None = None
+    footprint: dict | None = None
 
     def background_mask(self) -> np.ndarray:
         """(H, W) uint8: what a pixel-centre ray that misses the target meets: 0 space,

@@ -56,15 +56,29 @@ class CameraRays:
             )
         )
         d_body = frame.R_body_from_cam @ d_cam
+        # Start the ray just outside the target's bounding sphere with one rounding (FMA),
+        # so the start point and Embree's hit distances keep float32 precision.
+        origin = dr.fma(d_body, frame.ray_start_m, frame.camera_render_m)
+        return self._surfaces(frame, origin, d_body, d_cam, frame.ray_start_m, opacity_sample, hits)
+
+    def anchored(self, frame: FrameValues, idx, opacity_sample, hits: tuple | None = None):
+        """The rays of ``frame.anchored_rays`` (entry ``idx``: a start in front of the target,
+        render space, and a unit direction, body frame; see ``render.footprint``) and the
+        surfaces they stop at (``primary``; distances from the start)."""
+        origin, d_body = frame.anchored_rays(idx)
+        d_cam = frame.R_cam_from_body @ d_body
+        return self._surfaces(frame, origin, d_body, d_cam, 0.0, opacity_sample, hits)
+
+    def _surfaces(
+        self, frame: FrameValues, origin, d_body, d_cam, start_m, opacity_sample, hits
+    ) -> CameraRayHit:
+        mi, dr = self._mi, self._dr
         if hits is None:
-            # Start the ray just outside the target's bounding sphere with one rounding
-            # (FMA), so the start point and Embree's hit distances keep float32 precision.
-            origin = dr.fma(d_body, frame.ray_start_m, frame.camera_render_m)
             found = self._geometry.intersect(
                 origin, d_body, mi.Bool(True), opacity_sample, coherent=True
             )
             hit, surface = found.hit, found.surface
-            distance_m = found.distance_m + frame.ray_start_m
+            distance_m = found.distance_m + start_m
         else:
             hit = mi.Bool(True)
             surface = self._geometry.surface_at(*hits, hit)
@@ -88,8 +102,11 @@ class CameraRays:
         radiance goes to entry ``lane`` of the sum)."""
         mi = self._mi
         s = self.settings
-        px, py = frame.pixel_position_px(idx)
         rng, ld = self._streams.streams(frame, idx, pass_index, 0)
+        if frame.anchored_rays is not None:  # one path per ray, no sub-pixel position
+            hit = self.anchored(frame, idx, lambda layer: rng.next_float32(), hits)
+            return hit, PathStart(idx, pass_index, ld, lane)
+        px, py = frame.pixel_position_px(idx)
         ss = float(s.supersampling)
         if s.samples_per_pixel == 1:
             jx, jy = mi.Float(0.5), mi.Float(0.5)

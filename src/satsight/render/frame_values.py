@@ -37,7 +37,10 @@ class FrameValues:
     the target look for it. pixel_position_px: pixel index (UInt32) -> (x, y) Float
     image coordinates of the pixel's centre, px. diffuse_env_table: per face side, the unshadowed
     environment's diffuse radiance over kd_eq (Color3f, W m^-2 sr^-1), with
-    ``environment="unshadowed"`` on a flat-shaded mesh; else None.
+    ``environment="unshadowed"`` on a flat-shaded mesh; else None. anchored_rays: for the
+    footprint pass (``render.footprint``), entry index (UInt32) -> (start Point3f in render
+    space, unit direction Vector3f in the body frame) of rays anchored at the target, which
+    then replace the pixels' camera rays (one path each); else None.
     """
 
     R_body_from_cam: object
@@ -59,3 +62,4 @@ class FrameValues:
     bodies_in_view: bool
     pixel_position_px: Callable
     diffuse_env_table: object = None
+    anchored_rays: Callable | None = None

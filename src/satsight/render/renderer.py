@@ -53,6 +53,7 @@ from satsight.render.body_light import BodyLight
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.render.camera_rays import LABEL_OPACITY_THRESHOLD, CameraRays
 from satsight.render.environment_light import EnvironmentLight
+from satsight.render.footprint import FootprintGrid, compose_pixels, plan_footprint
 from satsight.render.frame_values import FrameValues
 from satsight.render.path_streams import PathStreams
 from satsight.render.path_tracing import PathTracer
@@ -164,9 +165,25 @@ class Renderer:
         margin_radiance = None
         if margin_px > 0:
             margin_radiance = self._render_margin(frame, width, height, margin_px)
+        radiance_w_m2_sr = radiance.numpy().reshape(height, width, 3)
+        grid = None
+        if self.settings.integrate_footprint:
+            grid = plan_footprint(
+                camera,
+                cam_from_body,
+                self.mesh.box_keypoints_body_m[:8],
+                self.mesh.center_m,
+                self.mesh.bounding_radius_m,
+                self.settings.passes,
+            )
+        if grid is not None:
+            if not radiance_w_m2_sr.flags.writeable:
+                radiance_w_m2_sr = radiance_w_m2_sr.copy()
+            flat = radiance_w_m2_sr.reshape(-1, 3)
+            flat[grid.pixels] = self._footprint_radiance(frame, grid).astype(np.float32)
 
         return RadianceImage(
-            radiance_w_m2_sr=radiance.numpy().reshape(height, width, 3),
+            radiance_w_m2_sr=radiance_w_m2_sr,
             depth_m=depth.numpy().reshape(height, width),
             part_id=part_pairs.numpy().view(np.uint16)[:n_pix].reshape(height, width),
             normals_cam=normals.numpy().reshape(height, width, 3),
@@ -175,6 +192,7 @@ class Renderer:
             background_id=background[0].numpy().astype(np.uint8).reshape(height, width)
             if background
             else None,
+            footprint=None if grid is None else grid.label(),
         )
 
     def _frame_values(
@@ -262,6 +280,56 @@ class Renderer:
         radiance, _ = self._radiance_passes(ring, len(ring_x), with_labels=False)
         dr.eval(radiance)
         return radiance.numpy().reshape(-1, 3)
+
+    def _footprint_radiance(self, frame: FrameValues, grid: FootprintGrid) -> np.ndarray:
+        """(len(grid.pixels), 3) radiance of the pixels under a small target's fine grid:
+        one path per cell along its anchored ray (its own random streams, another key),
+        summed over each pixel's area with the background at the pixel centre."""
+        mi, dr = self._mi, self._dr
+        origin = mi.Point3f(*(mi.Float(c) for c in grid.origin_render_m.T.astype(np.float32)))
+        direction = mi.Vector3f(*(mi.Float(c) for c in grid.direction_body.T.astype(np.float32)))
+        cells = dataclasses.replace(
+            frame,
+            seed_key0=frame.seed_key0 ^ 0x2545F491,
+            anchored_rays=lambda index: (
+                dr.gather(mi.Point3f, origin, index),
+                dr.gather(mi.Vector3f, direction, index),
+            ),
+        )
+        settings = self.settings
+        self.settings = settings.with_(supersampling=1, samples_per_pixel=1)
+        try:
+            radiance, _ = self._radiance_passes(cells, grid.sample_count, with_labels=False)
+            dr.eval(radiance)
+        finally:
+            self.settings = settings
+        samples = radiance.numpy().reshape(-1, 3)
+        background = None
+        if frame.bodies_in_view:
+            background = self._background_radiance(frame, grid)
+        return compose_pixels(grid, samples, background)
+
+    def _background_radiance(self, frame: FrameValues, grid: FootprintGrid) -> np.ndarray:
+        """(len(grid.pixels), 3) radiance of the Earth or the Moon (0 for space) along the
+        camera rays through the centres of the grid's pixels, the target left out."""
+        mi, dr = self._mi, self._dr
+        columns = grid.pixels % grid.frame_width_px
+        rows = grid.pixels // grid.frame_width_px
+        px = mi.Float(columns.astype(np.float32))
+        py = mi.Float(rows.astype(np.float32))
+        d_cam = dr.normalize(
+            mi.Vector3f(
+                (px - frame.cx_px) / frame.focal_length_px,
+                (py - frame.cy_px) / frame.focal_length_px,
+                1.0,
+            )
+        )
+        d_body = frame.R_body_from_cam @ d_cam
+        value, _ = self._body_light.radiance(
+            frame.bodies, frame.camera_render_m, d_body, mi.Bool(True)
+        )
+        dr.eval(value)
+        return np.stack([value[k].numpy() for k in range(3)], axis=-1)
 
     def _radiance_passes(self, frame: FrameValues, n_pix: int, with_labels: bool) -> tuple:
         """Radiance (flat Float, three values per pixel) of pixels 0..n_pix-1 (positions

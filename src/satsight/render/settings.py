@@ -51,6 +51,10 @@ class RenderSettings:
     Dachsbacher 2013): at surfaces reached by a bounce, the roughness is at least this
     (0 turns it off), which turns the rare, very bright Sun caustics through mirror-like
     parts into soft glossy inter-reflection instead of single-pixel outliers.
+    integrate_footprint: render a target that is small on the image (its projected box
+    under 128 / supersampling px across) again on a fine grid over that box, so that its
+    pixels hold its flux integrated over their area (``satsight.render.footprint``): a
+    sub-pixel target keeps its signal instead of vanishing or filling a pixel.
     """
 
     brdf: BrdfModel = "ggx"
@@ -63,6 +67,7 @@ class RenderSettings:
     supersampling: int = 1
     max_transparent_layers: int = 4
     indirect_min_roughness: float = 0.35
+    integrate_footprint: bool = True
 
     def __post_init__(self) -> None:
         problems = []
@@ -87,6 +92,8 @@ class RenderSettings:
             problems.append(f"max_transparent_layers must be in [1, {MAX_TRANSPARENT_LAYERS}]")
         if not (0.0 <= self.indirect_min_roughness <= 1.0):
             problems.append("indirect_min_roughness must be in [0, 1]")
+        if not isinstance(self.integrate_footprint, bool):
+            problems.append("integrate_footprint must be true or false")
         if problems:
             raise SatsightError("render settings: " + "; ".join(problems))
 
