@@ -73,9 +73,7 @@ def look_at_axes(
     eye on the target.
     """
     if reference_axis not in LOOK_AT_AXES:
-        raise SatsightError(
-            f"reference_axis must be one of {LOOK_AT_AXES}; got {reference_axis!r}"
-        )
+        raise SatsightError(f"reference_axis must be one of {LOOK_AT_AXES}; got {reference_axis!r}")
     arrays = []
     for name, value in (("eye_m", eye_m), ("target_m", target_m), ("reference", reference)):
         array = np.asarray(value, dtype=np.float64)
