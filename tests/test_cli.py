@@ -174,7 +174,17 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
     assert background.dtype == np.uint8 and background.shape == (HEIGHT_PX, WIDTH_PX)
     assert set(np.unique(background).tolist()) <= {0, 1, 2}
     assert not background[on].any()
-    assert background[~on & lit].all()
+    # Light off the mask comes from a body behind, or from a small target's pixels whose
+    # radiance was integrated over their area (the projected box of its footprint label).
+    integrated = np.zeros_like(on)
+    footprint = frame["target_footprint"]
+    if footprint["integrated"]:
+        bx0, by0, bx1, by1 = footprint["projected_box_xyxy_px"]
+        integrated[
+            max(math.floor(by0 + 0.5), 0) : math.floor(by1 + 0.5) + 1,
+            max(math.floor(bx0 + 0.5), 0) : math.floor(bx1 + 0.5) + 1,
+        ] = True
+    assert background[~on & lit & ~integrated].all()
     regions = frame["sensor"]["regions"]
     assert regions["target"]["pixel_count"] == frame["object_pixel_count"]
     for value, name in ((1, "earth"), (2, "moon")):
@@ -184,7 +194,7 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
         sum(r["saturated_pixel_count"] for r in regions.values())
         <= frame["sensor"]["saturated_pixel_count"]
     )
-    _check_photometry(labels, frame, radiance, on, lit)
+    _check_photometry(labels, frame, radiance, on, background > 0)
     _check_dn_image(demo_dir, labels, frame, radiance, on, lit)
     del radiance
 
@@ -233,29 +243,28 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
 
 
 def _check_photometry(
-    labels: dict, frame: dict, radiance: np.ndarray, on: np.ndarray, lit: np.ndarray
+    labels: dict, frame: dict, radiance: np.ndarray, on: np.ndarray, body: np.ndarray
 ) -> None:
     """The target's in-band irradiance at the camera: the sum of the in-band radiance times
     each pixel's solid angle (p / f)^2 cos^3(theta) over the pixels whose footprint meets
     the target's projected box, but for those near the Earth's disc and not near the target;
     its V-equivalent magnitude -26.76 - 2.5 log10(E / E_sun) with the Sun at 1 AU.
-    on: the object mask; lit: the pixels with radiance above 0 (>= 0 everywhere)."""
+    on: the object mask; body: the pixels whose centre sees the Earth or the Moon."""
     corners = np.array(frame["box_keypoints_px"][:8])
     x0, y0 = np.floor(corners.min(axis=0) + 0.5).astype(int)
     x1, y1 = np.floor(corners.max(axis=0) + 0.5).astype(int) + 1
     window = np.s_[y0:y1, x0:x1]
     summed = np.ones((y1 - y0, x1 - x0), dtype=bool)
-    if (lit & ~on).any():  # the Earth is drawn
-        # Its pixels: lit, away from the target's mask and ring. The pixels within one pixel
-        # of them are left out, unless within one pixel of the mask. Two 3 x 3 dilations:
+    if body.any():  # the Earth is drawn
+        # The pixels within one pixel of a pixel that sees it are left out, unless within
+        # one pixel of the mask. Two 3 x 3 dilations:
         # the window's pixels depend on those within 2 pixels of it, and the dilations run
         # on that neighbourhood alone (cut at the image's edges, as the whole image is).
         square = np.ones((3, 3), dtype=bool)
         top, left = max(y0 - 2, 0), max(x0 - 2, 0)
         near = np.s_[top : y1 + 2, left : x1 + 2]
         ring = binary_dilation(on[near], structure=square)
-        earth = lit[near] & ~ring
-        summed = (ring | ~binary_dilation(earth, structure=square))[
+        summed = (ring | ~binary_dilation(body[near], structure=square))[
             y0 - top : y1 - top, x0 - left : x1 - left
         ]
     K = np.array(labels["camera"]["K"])

@@ -47,6 +47,16 @@ class CameraRays:
         hits: the rays' surfaces (face, u, v) found by an earlier trace of the same rays,
         which are then not traced again (and have no distance).
         """
+        dr = self._dr
+        d_cam, d_body = self.directions(frame, px, py)
+        # Start the ray just outside the target's bounding sphere with one rounding (FMA),
+        # so the start point and Embree's hit distances keep float32 precision.
+        origin = dr.fma(d_body, frame.ray_start_m, frame.camera_render_m)
+        return self._surfaces(frame, origin, d_body, d_cam, frame.ray_start_m, opacity_sample, hits)
+
+    def directions(self, frame: FrameValues, px, py) -> tuple:
+        """Unit directions (camera frame, body frame) of the camera rays through image
+        positions (px, py), px."""
         mi, dr = self._mi, self._dr
         d_cam = dr.normalize(
             mi.Vector3f(
@@ -55,11 +65,7 @@ class CameraRays:
                 1.0,
             )
         )
-        d_body = frame.R_body_from_cam @ d_cam
-        # Start the ray just outside the target's bounding sphere with one rounding (FMA),
-        # so the start point and Embree's hit distances keep float32 precision.
-        origin = dr.fma(d_body, frame.ray_start_m, frame.camera_render_m)
-        return self._surfaces(frame, origin, d_body, d_cam, frame.ray_start_m, opacity_sample, hits)
+        return d_cam, frame.R_body_from_cam @ d_cam
 
     def anchored(self, frame: FrameValues, idx, opacity_sample, hits: tuple | None = None):
         """The rays of ``frame.anchored_rays`` (entry ``idx``: a start in front of the target,

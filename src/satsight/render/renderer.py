@@ -317,14 +317,7 @@ class Renderer:
         rows = grid.pixels // grid.frame_width_px
         px = mi.Float(columns.astype(np.float32))
         py = mi.Float(rows.astype(np.float32))
-        d_cam = dr.normalize(
-            mi.Vector3f(
-                (px - frame.cx_px) / frame.focal_length_px,
-                (py - frame.cy_px) / frame.focal_length_px,
-                1.0,
-            )
-        )
-        d_body = frame.R_body_from_cam @ d_cam
+        _, d_body = self._camera_rays.directions(frame, px, py)
         value, _ = self._body_light.radiance(
             frame.bodies, frame.camera_render_m, d_body, mi.Bool(True)
         )
