@@ -18,6 +18,7 @@ from scipy.ndimage import binary_dilation, binary_erosion, maximum_filter
 
 from cli_runner import invoke_satsight, run_satsight
 from figure_checks import figure_pixels, has_colour
+from qe_oracle import solar_qe
 from satsight.camera.pinhole import PinholeCamera
 from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
@@ -309,10 +310,11 @@ def _check_dn_image(
         sem = read_sigma_dn / math.sqrt(sky.size)
         assert abs(sky.mean() - bias) < 6 * sem + 0.01
         assert sky.std() == pytest.approx(read_sigma_dn, rel=0.02)
-    # The target, in closed form: electrons = QE E_ph A t with E_ph = pi L_ph tau / (4 N^2)
-    # the focal-plane photon irradiance and L_ph the photon radiance of the three channels.
-    # Photons per channel: its power over h c / lambda_c, lambda_c the photon-weighted
-    # wavelength of its third of the band in the E-490 spectrum.
+    # The target, in closed form: electrons = E_e A t with E_e = pi L_e tau / (4 N^2) the
+    # focal-plane photo-electron irradiance and L_e the photo-electron radiance of the three
+    # channels. Per channel: its power over h c / lambda_c, lambda_c the photon-weighted
+    # wavelength of its third of the band in the E-490 spectrum, times QE_c, the detector
+    # curve's photon-weighted mean over that third (from the data files).
     # Away from the target's edges and from saturated pixels, beyond the PSF's reach (it
     # moves light only locally) and the one pixel at the end of each blooming trail. Those
     # pixels lie in the target's box, and depend on the saturated pixels up to 4 rows and 3
@@ -326,15 +328,15 @@ def _check_dn_image(
     assert inner.sum() > 300
     edges = np.linspace(*sensor["band_nm"], 4)
     lambda_rgb_m = [photon_weighted_wavelength_m((edges[k], edges[k + 1])) for k in (2, 1, 0)]
-    photon_radiance = radiance[box][inner].astype(np.float64) @ (
+    qe_rgb = [solar_qe(edges[k], edges[k + 1]) for k in (2, 1, 0)]
+    electron_radiance = radiance[box][inner].astype(np.float64) @ (
         np.array(sensor["channel_weights_rgb"])
         * np.array(lambda_rgb_m)
+        * np.array(qe_rgb)
         / (6.62607015e-34 * 299792458.0)
-    )  # photons s^-1 m^-2 sr^-1
-    focal = np.pi * photon_radiance * optics["transmission"] / (4.0 * sensor["f_number"] ** 2)
-    expected_e = (
-        detector["quantum_efficiency"] * focal * detector["pixel_pitch_m"] ** 2 * exposure_s
-    )
+    )  # photo-electrons s^-1 m^-2 sr^-1
+    focal = np.pi * electron_radiance * optics["transmission"] / (4.0 * sensor["f_number"] ** 2)
+    expected_e = focal * detector["pixel_pitch_m"] ** 2 * exposure_s
     # Measured 0.9956-1.0005 over the six frames; PRNU (1 %) and shot noise average out
     # to < 0.1 % over these pixel counts, the rest is light the PSF moves across the edge.
     measured_e = (dn[box][inner].astype(np.float64) - bias) * gain

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
+from qe_oracle import blackbody_qe
 from satsight.cli import main
 from satsight.config.scenario import load_scenario, parse_scenario
 from satsight.dataset.image_files import read_png
@@ -74,13 +75,10 @@ def test_frames_carry_sensor_and_star_labels(labels) -> None:
 
 def test_stars_appear_at_their_labelled_pixels_with_their_photon_count(dataset, labels) -> None:
     """The DN summed around each labelled star, less the bias, times the gain, is the
-    star's mean photo-electrons QE N within the noise of that sum."""
+    star's mean photo-electrons QE N within the noise of that sum, QE the star's own
+    (labelled; checked against its black body in the next test)."""
     detector = labels["sensor"]["detector"]
-    gain, bias, qe = (
-        detector["conversion_gain_e_per_dn"],
-        detector["bias_dn"],
-        detector["quantum_efficiency"],
-    )
+    gain, bias = detector["conversion_gain_e_per_dn"], detector["bias_dn"]
     pixel_var_e2 = detector["read_noise_e"] ** 2 + gain**2 / 12
     checked = 0
     for frame in labels["frames"]:
@@ -107,7 +105,7 @@ def test_stars_appear_at_their_labelled_pixels_with_their_photon_count(dataset, 
             if others:
                 continue  # a neighbour's light falls in the box
             electrons = float(np.sum(dn[box] - bias)) * gain
-            expected = qe * star["photons"]
+            expected = star["quantum_efficiency"] * star["photons"]
             sigma = math.sqrt(expected + dn[box].size * pixel_var_e2)
             # The 9 x 9 box misses under 2 % of the light (the PSF's far wings).
             assert abs(electrons - 0.99 * expected) < SIGMA * sigma + 0.01 * expected, star
@@ -119,7 +117,9 @@ def test_star_labels_are_the_catalogue_stars_in_view_less_those_behind_the_targe
     labels, dataset
 ) -> None:
     """Recompute each frame's stars without the target's mask: those whose centre falls on
-    the target are the ones counted as hidden by it, the rest are the labelled stars."""
+    the target are the ones counted as hidden by it, the rest are the labelled stars, each
+    with the QE of its black body (the curve's photon-weighted mean over the band, from the
+    data files; 1e-5: that quadrature against the library's, < 1e-6)."""
     scenario = load_scenario(dataset / "scenario.yaml")
     sensor = build_sensor(scenario)
     track, indices = planned_frames(scenario, build_target(scenario.target))
@@ -145,6 +145,15 @@ def test_star_labels_are_the_catalogue_stars_in_view_less_those_behind_the_targe
         visible_ids = set(stars.source_id[~on_target].tolist())
         if frame["stars_hidden_by_earth_or_moon"] == 0:
             assert {s["source_id"] for s in frame["stars"]} == visible_ids
+        temperature_k = dict(zip(stars.source_id.tolist(), stars.temperature_k, strict=True))
+        drawn = [s for s in frame["stars"] if s["source_id"] in temperature_k]
+        if drawn:
+            own = np.array([temperature_k[s["source_id"]] for s in drawn])
+            np.testing.assert_allclose(
+                [s["quantum_efficiency"] for s in drawn],
+                blackbody_qe(*sensor.band_nm, own),
+                rtol=1e-5,
+            )
         compared += frame["stars_hidden_by_earth_or_moon"] == 0
     assert compared >= 2
     # One frame looks past the Earth: its stars are hidden by it.

@@ -214,7 +214,10 @@ def add_frame_stars(
     """Add the catalogue stars in view of frame ``index`` to its focal-plane irradiance, in
     place, hidden behind the target (its mask), the Earth (with the atmosphere margin) and
     the Moon; return the frame's star labels (each star's catalogue id, pixel position, V
-    magnitude and mean photons reaching the detector over the exposure)."""
+    magnitude, mean photons reaching the detector over the exposure and the detector's
+    quantum efficiency for its spectrum). Each star's photons are weighted by its own QE
+    over the chain's (``SensorChain.star_quantum_efficiency_ratio``), so the detector counts
+    its electrons at its own QE."""
     config = scenario.stars
     if not (config.enabled and track.has_sky):
         return {"star_count": 0}
@@ -254,6 +257,7 @@ def add_frame_stars(
         band_nm=sensor.band_nm,
         margin_px=stamp_radius_px + 0.5,
     )
+    qe_ratio = sensor.star_quantum_efficiency_ratio(stars.temperature_k)
     star_photons_image(
         stars,
         object_mask.shape,
@@ -263,12 +267,14 @@ def add_frame_stars(
         sensor.band_nm,
         stamp_radius_px,
         out=irradiance_w_m2,
-        scale=sensor.photons_to_irradiance_factor(exposure_time_s),
+        scale=sensor.photons_to_irradiance_factor(exposure_time_s) * qe_ratio,
     )
     labels = stars.labels()
     photons = star_photon_counts(stars.photon_flux_m2_s, sensor.optics, exposure_time_s)
-    for record, count in zip(labels["stars"], photons, strict=True):
+    star_qe = sensor.detector.star_quantum_efficiency(sensor.band_nm, stars.temperature_k)
+    for record, count, qe in zip(labels["stars"], photons, star_qe, strict=True):
         record["photons"] = float(count)
+        record["quantum_efficiency"] = float(qe)
     return labels
 
 

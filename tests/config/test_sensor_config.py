@@ -50,6 +50,18 @@ def test_overrides_reach_the_built_optics_and_detector() -> None:
     assert detector.read_noise_e == 3.0 and detector.blooming is False
 
 
+def test_quantum_efficiency_is_the_curve_unless_a_number_is_given() -> None:
+    """Unset or null: None, the detector's QE curve; a number in (0, 1]: that scalar."""
+    assert scenario().camera.build_detector().quantum_efficiency is None
+    nulled = scenario(detector={"quantum_efficiency": None}).camera.build_detector()
+    assert nulled.quantum_efficiency is None
+    fixed = scenario(detector={"quantum_efficiency": 0.75}).camera.build_detector()
+    assert fixed.quantum_efficiency == 0.75
+    for bad in (0.0, 1.2):
+        with pytest.raises(SatsightError, match=r"camera\.detector\.quantum_efficiency"):
+            scenario(detector={"quantum_efficiency": bad})
+
+
 def test_defocus_blur_reaches_the_built_optics_in_metres() -> None:
     camera = scenario(optics={"defocus_blur_um": 45.0}).camera
     assert camera.build_optics().defocus_blur_diameter_m == pytest.approx(45e-6)

@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import copy
 import hashlib
 from pathlib import Path
 
 import numpy as np
+import pytest
 
+from qe_oracle import solar_qe
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.header import (
     CONVENTIONS,
     FarCamera,
     TargetDescription,
     labels_header,
+    sensor_summary,
 )
 from satsight.dataset.preview import PreviewStretch
 from satsight.pipeline import build_sensor
@@ -76,6 +80,25 @@ def test_the_header_holds_its_keys_in_order() -> None:
     assert header["preview"]["stretch"] == "gamma"
     assert header["target"]["keypoints"]["count"] == 3
     assert header["target"]["mesh_file_sha256"] is None
+
+
+def test_the_sensor_states_its_quantum_efficiency_and_where_it_comes_from() -> None:
+    """Default: the CCD231-84 curve's photon-weighted mean over the band in E-490 sunlight
+    (oracle from the data files; 1e-5: its quadrature against the library's, < 3e-6), and
+    each third's; the detector's own entry stays null. A number in the scenario: that number,
+    labelled as an override."""
+    summary = _header()["sensor"]
+    assert summary["quantum_efficiency"] == pytest.approx(solar_qe(450.0, 900.0), rel=1e-5)
+    assert summary["quantum_efficiency_source"].startswith("CCD231-84 curve")
+    thirds = [solar_qe(750.0, 900.0), solar_qe(600.0, 750.0), solar_qe(450.0, 600.0)]
+    np.testing.assert_allclose(summary["channel_quantum_efficiency_rgb"], thirds, rtol=1e-5)
+    assert summary["detector"]["quantum_efficiency"] is None
+    data = copy.deepcopy(SCENARIO)
+    data["camera"]["detector"] = {"quantum_efficiency": 0.72}
+    fixed = sensor_summary(build_sensor(parse_scenario(data)))
+    assert fixed["quantum_efficiency"] == 0.72
+    assert fixed["quantum_efficiency_source"] == "scalar override"
+    assert fixed["channel_quantum_efficiency_rgb"] == [0.72, 0.72, 0.72]
 
 
 def test_a_mesh_file_and_a_far_camera_are_described(tmp_path: Path) -> None:

@@ -9,19 +9,30 @@ import numpy as np
 import pytest
 
 from kernel_taps import edge_and_corner_loss, frame_kernel_taps
+from qe_oracle import blackbody_qe, solar_photon_integrals, solar_qe
 from satsight.camera.pinhole import PinholeCamera
 from satsight.errors import SatsightError
-from satsight.lighting.solar_spectrum import band_irradiance_w_m2, load_e490
+from satsight.lighting.solar_spectrum import band_irradiance_w_m2
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.sensor.chain import SensorChain, exposure_regions
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
 from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.mtf import band_wavelengths_m
 from satsight.sensor.optics import Optics
+from satsight.sensor.star_field import StarsInView, star_photon_counts
+from satsight.sensor.star_stamps import star_photons_image
 
 BAND_NM = (450.0, 900.0)
 H_PLANCK_J_S = 6.62607015e-34
 C_M_S = 299_792_458.0
+#: The CCD231-84 curve's mean over the band for E-490 sunlight, from the data files.
+SOLAR_QE = solar_qe(*BAND_NM)
+#: Relative tolerance of the QE-weighted counts: the oracle's fine-grid quadrature against
+#: the library's node sums (< 3e-6, see qe_oracle) plus float32 rounding of the weights and
+#: the irradiance (~1e-7 each).
+QE_RTOL = 1e-5
+#: A detector without fixed pattern or dark current: its mean electrons are eta x photons.
+CLEAN = {"prnu_fraction": 0.0, "dsnu_e_per_s": 0.0, "dark_current_e_per_s": 0.0}
 
 
 def _chain(
@@ -86,8 +97,10 @@ def test_auto_exposure_fills_the_chosen_fraction_at_the_percentile() -> None:
     t = chain.exposure_time_s(irradiance, mask)
     level = float(np.percentile(irradiance[mask], 50.0))
     d = chain.detector
-    rate_e_per_s = d.quantum_efficiency * level * d.pixel_area_m2 / chain.photon_energy_j
-    assert t == pytest.approx(0.6 * d.full_well_e / (rate_e_per_s + d.dark_current_e_per_s))
+    rate_e_per_s = SOLAR_QE * level * d.pixel_area_m2 / chain.photon_energy_j
+    assert t == pytest.approx(
+        0.6 * d.full_well_e / (rate_e_per_s + d.dark_current_e_per_s), rel=QE_RTOL
+    )
 
 
 def test_exposure_rule_falls_back_and_clips() -> None:
@@ -117,7 +130,7 @@ def test_uniform_patch_reads_the_closed_form_dn() -> None:
     dn = chain.read_out(irradiance, 0.002, np.random.default_rng(5)).dn
     d, optics = chain.detector, chain.optics
     e_w_m2 = math.pi * 30.0 * optics.transmission / (4.0 * optics.f_number**2)
-    electrons = d.quantum_efficiency * e_w_m2 * d.pixel_area_m2 * 0.002 / chain.photon_energy_j
+    electrons = SOLAR_QE * e_w_m2 * d.pixel_area_m2 * 0.002 / chain.photon_energy_j
     inner = dn[61:99, 51:129].astype(np.float64)
     # Per-pixel spread: shot noise, 1 % PRNU, read noise and quantisation, in DN.
     sigma_dn = math.sqrt(electrons + (0.01 * electrons) ** 2 + d.read_noise_e**2) / (
@@ -188,30 +201,113 @@ def test_psf_kernel_grows_with_the_defocus_blur_disc() -> None:
 
 
 @pytest.mark.parametrize("channel", [0, 1, 2], ids=["red", "green", "blue"])
-def test_a_coloured_patch_counts_the_photons_of_its_own_third(channel) -> None:
-    """Light in one channel only: its photons are its in-band power over h c / lambda_c,
-    lambda_c the photon-weighted wavelength of that third of the band (not of the whole
-    band, which would miscount red light by +27 % and blue light by -19 %)."""
-    chain = _chain(ExposureRule(mode="fixed", time_s=0.002), size_px=(140, 120))
+def test_a_coloured_patch_counts_the_electrons_of_its_own_third(channel) -> None:
+    """Light in one channel only: a Lambertian plate whose reflectance rho_c holds over that
+    third of the band and is 0 elsewhere, under E-490 sunlight at 1 AU. Its channel radiance
+    is rho_c E_band / pi; its electrons are rho_c tau A t / (4 N^2 h c) int_third E l QE dl:
+    the third's photons at its own photon-weighted wavelength (not the band's, which would
+    miscount red light by +27 % and blue light by -19 %) and at its own QE (0.904, 0.886,
+    0.627 from blue to red; the band's 0.813 would miscount red light by +30 %)."""
+    chain = _chain(ExposureRule(mode="fixed", time_s=0.002), size_px=(140, 120), **CLEAN)
     radiance = np.zeros((120, 140, 3), np.float32)
     radiance[20:100, 20:120, channel] = 40.0
     irradiance = chain.focal_plane_irradiance_w_m2(_image(radiance))
     lo, hi = {0: (750.0, 900.0), 1: (600.0, 750.0), 2: (450.0, 600.0)}[channel]
-    third = band_irradiance_w_m2((lo, hi))
-    whole = band_irradiance_w_m2(BAND_NM)
-    # Independent: the third's photon-weighted wavelength by quadrature of the E-490 table.
-    wavelength_m, spectral = load_e490()
-    inside = (wavelength_m >= lo * 1e-9) & (wavelength_m <= hi * 1e-9)
-    lam_m = np.trapezoid(spectral[inside] * wavelength_m[inside], wavelength_m[inside]) / (
-        np.trapezoid(spectral[inside], wavelength_m[inside])
-    )
+    band_w_m2 = solar_photon_integrals(*BAND_NM)[0]
+    electrons_per_m2_s = solar_photon_integrals(lo, hi)[2]
     optics, d = chain.optics, chain.detector
-    power_w_m2 = (third / whole) * 40.0 * math.pi * optics.transmission / (4 * optics.f_number**2)
-    photons = power_w_m2 * lam_m / (H_PLANCK_J_S * C_M_S) * d.pixel_area_m2 * 0.002
-    got = photons_per_pixel(irradiance, d.pixel_area_m2, 0.002, chain.photon_energy_j)
-    # Inside the patch, beyond the kernel's reach (20 px) from its edges; 1e-3: the table's
-    # sampling.
-    np.testing.assert_allclose(got[41:79, 41:99], photons, rtol=1e-3)
+    rho = 40.0 * math.pi / band_w_m2
+    expected = (rho * optics.transmission / (4 * optics.f_number**2) * electrons_per_m2_s) * (
+        d.pixel_area_m2 * 0.002
+    )
+    got = chain.mean_electrons(irradiance, 0.002)
+    # Inside the patch, beyond the kernel's reach (20 px) from its edges.
+    np.testing.assert_allclose(got[41:79, 41:99], expected, rtol=QE_RTOL)
+    assert chain.channel_quantum_efficiency[channel] == pytest.approx(solar_qe(lo, hi), rel=QE_RTOL)
+
+
+def test_a_grey_lambert_plate_counts_the_photon_weighted_qe_of_sunlight() -> None:
+    """A grey Lambertian plate of albedo rho facing the Sun at 1 AU: every channel holds
+    rho E_band / pi, and its mean electrons per pixel are rho tau A t / (4 N^2 h c) int E l QE
+    dl over the band, the curve's photon-weighted mean (0.8127) times its photons. The
+    chain's eta is that mean, and the channel weights of a grey surface sum to 1."""
+    chain = _chain(size_px=(140, 120), **CLEAN)
+    band_w_m2, photons_per_m2_s, electrons_per_m2_s = solar_photon_integrals(*BAND_NM)
+    rho, t = 0.3, 0.004
+    radiance = np.zeros((120, 140, 3), np.float32)
+    radiance[20:100, 20:120] = rho * band_w_m2 / math.pi
+    got = chain.mean_electrons(chain.focal_plane_irradiance_w_m2(_image(radiance)), t)
+    optics, d = chain.optics, chain.detector
+    scale = rho * optics.transmission / (4 * optics.f_number**2) * d.pixel_area_m2 * t
+    np.testing.assert_allclose(got[41:79, 41:99], scale * electrons_per_m2_s, rtol=QE_RTOL)
+    assert chain.quantum_efficiency == pytest.approx(
+        electrons_per_m2_s / photons_per_m2_s, rel=QE_RTOL
+    )
+    assert 0.81 < chain.quantum_efficiency < 0.815
+    assert float(chain.channel_detected_weights.sum()) == pytest.approx(1.0, abs=1e-6)
+    assert "CCD231-84 curve" in chain.quantum_efficiency_source
+    assert "[450, 900] nm" in chain.quantum_efficiency_source
+
+
+def test_a_scalar_quantum_efficiency_overrides_the_curve_everywhere() -> None:
+    """quantum_efficiency = 0.7: eta is 0.7 for every channel and every star, so a plate's
+    electrons are 0.7 x its photons, whatever its colour, and the source says so."""
+    chain = _chain(size_px=(140, 120), quantum_efficiency=0.7, **CLEAN)
+    assert chain.quantum_efficiency == 0.7
+    assert chain.quantum_efficiency_source == "scalar override"
+    np.testing.assert_array_equal(chain.channel_quantum_efficiency, [0.7, 0.7, 0.7])
+    np.testing.assert_allclose(chain.channel_detected_weights, chain.channel_photon_weights)
+    np.testing.assert_array_equal(
+        chain.star_quantum_efficiency_ratio(np.array([3000.0, 30000.0])), [1.0, 1.0]
+    )
+    band_w_m2, photons_per_m2_s, _ = solar_photon_integrals(*BAND_NM)
+    _, red_photons_per_m2_s, _ = solar_photon_integrals(750.0, 900.0)
+    radiance = np.zeros((120, 140, 3), np.float32)
+    radiance[20:100, 20:70] = 0.3 * band_w_m2 / math.pi  # grey
+    radiance[20:100, 70:120, 0] = 0.3 * band_w_m2 / math.pi  # red only
+    got = chain.mean_electrons(chain.focal_plane_irradiance_w_m2(_image(radiance)), 0.004)
+    optics, d = chain.optics, chain.detector
+    scale = 0.3 * optics.transmission / (4 * optics.f_number**2) * d.pixel_area_m2 * 0.004
+    # Grey: 1e-5 as above; red: the chain's wavelength of the third (exact integrals of the
+    # E-490 interpolant) against the fine-grid oracle, and float32 weights.
+    np.testing.assert_allclose(got[41:79, 41:49], 0.7 * scale * photons_per_m2_s, rtol=QE_RTOL)
+    np.testing.assert_allclose(got[41:79, 91:99], 0.7 * scale * red_photons_per_m2_s, rtol=QE_RTOL)
+
+
+@pytest.mark.parametrize("temperature_k", [3000.0, 5772.0, 20000.0])
+def test_an_isolated_stars_electrons_follow_its_own_black_body_qe(temperature_k) -> None:
+    """A star's photons, added to the focal plane as the pipeline does (photons to
+    irradiance, times eta_star / eta), give eta_star N electrons in all, eta_star the
+    curve's photon-weighted mean over its black body: 0.737 at 3000 K, 0.809 at 5772 K,
+    0.846 at 20000 K, none of them the sunlight's 0.813."""
+    chain = _chain(size_px=(64, 64), **CLEAN)
+    flux = np.array([2e7])  # photons s^-1 m^-2
+    temperature = np.array([temperature_k])
+    stars = StarsInView(
+        x_px=np.array([31.3]),
+        y_px=np.array([32.6]),
+        v_mag=np.array([5.0]),
+        temperature_k=temperature,
+        photon_flux_m2_s=flux,
+        source_id=np.array([1]),
+        n_hidden_by_spheres=0,
+        n_hidden_by_mask=0,
+        band_nm=BAND_NM,
+    )
+    t = 0.01
+    irradiance = np.zeros((64, 64), np.float32)
+    scale = chain.photons_to_irradiance_factor(t) * chain.star_quantum_efficiency_ratio(temperature)
+    star_photons_image(
+        stars, (64, 64), chain.optics, chain.camera.pixel_pitch_m, t, BAND_NM,
+        out=irradiance, scale=scale,
+    )  # fmt: skip
+    photons = float(star_photon_counts(flux, chain.optics, t)[0])
+    eta_star = float(blackbody_qe(*BAND_NM, temperature)[0])
+    # The stamp (17 x 17 px) lies inside the frame and sums to 1; float32 sums over it.
+    assert float(chain.mean_electrons(irradiance, t).sum()) == pytest.approx(
+        eta_star * photons, rel=QE_RTOL
+    )
+    assert abs(eta_star - SOLAR_QE) > 0.003
 
 
 def test_light_outside_the_object_mask_is_kept() -> None:
@@ -332,9 +428,9 @@ def test_exposure_labels_tell_the_target_and_a_bright_earth_apart() -> None:
     fill = {name: chain.region_fill(irradiance, t, where) for name, where in regions.items()}
     assert fill["target"] == pytest.approx(0.7, rel=1e-6)
     d = chain.detector
-    rate_e_per_s = d.quantum_efficiency * 4.0 * d.pixel_area_m2 / chain.photon_energy_j
+    rate_e_per_s = SOLAR_QE * 4.0 * d.pixel_area_m2 / chain.photon_energy_j
     assert fill["earth"] == pytest.approx(
-        (rate_e_per_s + d.dark_current_e_per_s) * t / d.full_well_e, rel=1e-6
+        (rate_e_per_s + d.dark_current_e_per_s) * t / d.full_well_e, rel=QE_RTOL
     )
     assert fill["earth"] == pytest.approx(14.0, rel=1e-3)  # 0.7 x 20, the dark current ~0
     assert fill["moon"] is None

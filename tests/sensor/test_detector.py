@@ -14,6 +14,7 @@ import pytest
 import scipy.constants as const
 from scipy import stats
 
+from qe_oracle import blackbody_qe, solar_qe
 from satsight.errors import SatsightError
 from satsight.sensor import fixed_pattern
 from satsight.sensor.detector import (
@@ -43,12 +44,20 @@ N_PIX = SHAPE[0] * SHAPE[1]
 N_SIGMA = 5.0
 HC_J_M = const.h * const.c
 NO_FPN = DetectorParameters(prnu_fraction=0.0, dsnu_e_per_s=0.0)
+#: The CCD231-84 curve's photon-weighted mean over the band for E-490 sunlight, from the
+#: data files (tests/qe_oracle.py); the library's node sums agree to < 1e-6 relative.
+SOLAR_QE = solar_qe(*BAND_NM)
+
+
+def _qe(params: DetectorParameters) -> float:
+    """The eta a detector applies to sunlight over BAND_NM: its override, or the curve's."""
+    return SOLAR_QE if params.quantum_efficiency is None else params.quantum_efficiency
 
 
 def _irradiance_for_electrons(params: DetectorParameters, mean_e: float, t_s: float) -> float:
     """Irradiance (W m^-2) that gives ``mean_e`` photo-electrons in ``t_s`` (flat band)."""
     photon_energy_j = mean_photon_energy_j(BAND_NM)
-    return mean_e * photon_energy_j / (params.quantum_efficiency * params.pixel_area_m2 * t_s)
+    return mean_e * photon_energy_j / (_qe(params) * params.pixel_area_m2 * t_s)
 
 
 # --- photon collection -----------------------------------------------------------------
@@ -280,17 +289,50 @@ def test_fixed_pattern_depends_only_on_camera_seed() -> None:
 
 # --- exposure -------------------------------------------------------------------------
 @pytest.mark.parametrize("fill_fraction", [0.7, 0.25, 1.0])
-def test_exposure_for_fill_puts_irradiance_at_fill_fraction(fill_fraction: float) -> None:
-    params = DetectorParameters()
+@pytest.mark.parametrize("override", [None, 0.85])
+def test_exposure_for_fill_puts_irradiance_at_fill_fraction(
+    fill_fraction: float, override: float | None
+) -> None:
+    """The closed form t = f FW / (eta E A / <E_ph> + D) inverts the mean signal: exactly
+    (1e-12) with a scalar eta, to the QE oracle's 1e-6 with the curve's."""
+    params = DetectorParameters(quantum_efficiency=override)
     irradiance = 3.7e-5
     t_s = exposure_for_fill(irradiance, params, BAND_NM, fill_fraction)
     photons = photons_per_pixel(
         np.array([[irradiance]]), params.pixel_area_m2, t_s, mean_photon_energy_j(BAND_NM)
     )
-    mean_e = expected_electrons(
-        photons, params.quantum_efficiency, 1.0, params.dark_current_e_per_s, 0.0, t_s
+    mean_e = expected_electrons(photons, _qe(params), 1.0, params.dark_current_e_per_s, 0.0, t_s)
+    rel = 1e-12 if override is not None else 1e-6
+    assert mean_e[0, 0] == pytest.approx(fill_fraction * params.full_well_e, rel=rel)
+
+
+def test_the_quantum_efficiency_is_the_curves_unless_overridden() -> None:
+    """None: the curve's photon-weighted mean, for sunlight (0.8127 over 450-900 nm) and for
+    each star's black body; a number: that number for every light. A bad eta passed to an
+    exposure is refused."""
+    curve = DetectorParameters()
+    assert curve.quantum_efficiency is None
+    assert curve.band_quantum_efficiency(BAND_NM) == pytest.approx(SOLAR_QE, rel=1e-6)
+    assert curve.band_quantum_efficiency((750.0, 900.0)) == pytest.approx(
+        solar_qe(750.0, 900.0), rel=1e-5
     )
-    assert mean_e[0, 0] == pytest.approx(fill_fraction * params.full_well_e, rel=1e-12)
+    temps = np.array([3000.0, 10000.0])
+    np.testing.assert_allclose(
+        curve.star_quantum_efficiency(BAND_NM, temps), blackbody_qe(*BAND_NM, temps), rtol=1e-6
+    )
+    assert curve.quantum_efficiency_source(BAND_NM).startswith("CCD231-84 curve")
+    fixed = DetectorParameters(quantum_efficiency=0.6)
+    assert fixed.band_quantum_efficiency(BAND_NM) == 0.6
+    np.testing.assert_array_equal(fixed.star_quantum_efficiency(BAND_NM, temps), [0.6, 0.6])
+    assert fixed.quantum_efficiency_source(BAND_NM) == "scalar override"
+    # Electrons scale with eta: the override, and an eta passed to the exposure directly.
+    irradiance = np.full((4, 4), 1e-3)
+    dark = dataclasses.replace(NO_FPN, dark_current_e_per_s=0.0)
+    ratio = mean_electrons_image(irradiance, 1.0, dark, BAND_NM, 0, quantum_efficiency=0.4)
+    ratio /= mean_electrons_image(irradiance, 1.0, dark, BAND_NM, 0)
+    np.testing.assert_allclose(ratio, 0.4 / SOLAR_QE, rtol=1e-6)
+    with pytest.raises(SatsightError, match="quantum_efficiency must be in"):
+        exposure_for_fill(1e-3, curve, BAND_NM, quantum_efficiency=1.5)
 
 
 # --- errors ---------------------------------------------------------------------------
@@ -299,6 +341,7 @@ def test_exposure_for_fill_puts_irradiance_at_fill_fraction(fill_fraction: float
     [
         {"quantum_efficiency": 1.2},
         {"quantum_efficiency": 0.0},
+        {"quantum_efficiency": float("nan")},
         {"pixel_pitch_m": -15e-6},
         {"dark_current_e_per_s": -1.0},
         {"read_noise_e": float("nan")},

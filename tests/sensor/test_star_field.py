@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import scipy.constants as const
 
+from qe_oracle import blackbody_qe
 from satsight.camera.pinhole import PinholeCamera
 from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
@@ -314,23 +315,24 @@ def test_centroid_bias_of_undersampled_psf_matches_aliasing_theory():
 
 def test_isolated_star_dn_reproduces_photon_count():
     """Photons image -> detector chain (expected_electrons, Poisson, saturation, read-out
-    with noise and rounding) averaged over K seeds: sum(DN - bias) g / QE = N within 2 %."""
+    with noise and rounding) averaged over K seeds: sum(DN - bias) g / QE = N within 2 %,
+    QE the curve's photon-weighted mean over the star's black body (oracle from the data
+    files)."""
     optics = Optics.for_preset("wide_field")
     params = det.DetectorParameters()
     star = one_star(20.4, 19.8, v=7.0)
+    qe = float(blackbody_qe(*BAND, star.temperature_k)[0])
     t = 0.05
     photons = st.star_photons_image(star, (40, 40), optics, PIXEL_M, t, BAND).astype(np.float64)
     n_true = sf.star_photon_counts(star.photon_flux_m2_s, optics, t)[0]
-    assert photons.max() * params.quantum_efficiency < 0.5 * params.full_well_e
-    mean_e = det.expected_electrons(
-        photons, params.quantum_efficiency, 1.0, params.dark_current_e_per_s, 0.0, t
-    )
+    assert photons.max() * qe < 0.5 * params.full_well_e
+    mean_e = det.expected_electrons(photons, qe, 1.0, params.dark_current_e_per_s, 0.0, t)
     n_px = photons.size
     var_sum = mean_e.sum() + n_px * (
         params.read_noise_e**2 + params.conversion_gain_e_per_dn**2 / 12
     )
     k = 200
-    sd_rel = math.sqrt(var_sum / k) / (params.quantum_efficiency * n_true)
+    sd_rel = math.sqrt(var_sum / k) / (qe * n_true)
     assert 4 * sd_rel < 0.005  # statistical error well below the 2 % tolerance
     rng = np.random.default_rng(np.random.SeedSequence([2026, 3]))
     sums = []
@@ -340,7 +342,7 @@ def test_isolated_star_dn_reproduces_photon_count():
         dn = noise.read_out_dn(e, params, rng).astype(np.float64)
         sums.append((dn - params.bias_dn).sum() * params.conversion_gain_e_per_dn)
     dark = n_px * params.dark_current_e_per_s * t
-    recovered = (np.mean(sums) - dark) / params.quantum_efficiency
+    recovered = (np.mean(sums) - dark) / qe
     print(f"N = {n_true:.1f} photons, recovered {recovered:.1f}")
     assert recovered == pytest.approx(n_true, rel=0.02)
 
@@ -358,12 +360,14 @@ def test_limiting_magnitude_monte_carlo(preset):
     t = 0.1
     res = lm.limiting_magnitude_details(optics, params, t, BAND, snr=5.0)
     assert res.v_mag == pytest.approx(lm.limiting_magnitude(optics, params, t, BAND))
+    # The star's QE: the curve's photon-weighted mean over a 5772 K black body (the oracle's
+    # fine-grid quadrature agrees with the library's to < 1e-6).
+    qe = float(blackbody_qe(*BAND, np.array([5772.0]))[0])
+    assert res.quantum_efficiency == pytest.approx(qe, rel=1e-5)
     k = 20_000
     photons = np.tile(res.fraction * res.photons, (k, 1))  # (K S, S)
     rng = np.random.default_rng(np.random.SeedSequence([5, k]))
-    mean_e = det.expected_electrons(
-        photons, params.quantum_efficiency, 1.0, params.dark_current_e_per_s, 0.0, t
-    )
+    mean_e = det.expected_electrons(photons, qe, 1.0, params.dark_current_e_per_s, 0.0, t)
     dn = noise.read_out_dn(noise.shot_noise_electrons(mean_e, rng), params, rng).astype(np.float64)
     s = res.fraction.shape[0]
     signal_e = ((dn - params.bias_dn) * params.conversion_gain_e_per_dn).reshape(k, s, s)
@@ -375,6 +379,22 @@ def test_limiting_magnitude_monte_carlo(preset):
     print(f"{preset}: V_lim {res.v_mag:.2f}, n = {res.n_pixels} px, MC SNR {snr:.3f}")
     assert snr == pytest.approx(5.0, rel=tol)
     assert signal_e.mean() == pytest.approx(res.signal_e, rel=4 / (5 * math.sqrt(k)))
+
+
+@pytest.mark.parametrize("temperature_k", [3500.0, 5772.0, 15000.0])
+def test_limiting_magnitude_moves_with_the_stars_own_qe(temperature_k):
+    """The SNR fixes the electrons x in the aperture, so the photons N = x / (eta F_n) and
+    V = -2.5 log10 N + const: a scalar eta = 0.9 against the curve's mean over the star's
+    black body moves the limit by exactly 2.5 log10(0.9 / eta_star), +0.11 mag at 5772 K."""
+    optics = Optics.for_preset("wide_field")
+
+    def v_lim(params: det.DetectorParameters) -> float:
+        return lm.limiting_magnitude(optics, params, 0.1, BAND, temperature_k=temperature_k)
+
+    curve = v_lim(det.DetectorParameters())
+    scalar = v_lim(det.DetectorParameters(quantum_efficiency=0.9))
+    eta_star = float(blackbody_qe(*BAND, np.array([temperature_k]))[0])
+    assert scalar - curve == pytest.approx(2.5 * math.log10(0.9 / eta_star), abs=1e-5)
 
 
 def test_limiting_magnitude_scaling():
@@ -419,6 +439,10 @@ def test_bad_input_raises(catalog):
         st.star_photons_image(star, (20, 20), optics, PIXEL_M, 1.0, (400, 700))
     with pytest.raises(SatsightError, match="shape_hw"):
         st.star_photons_image(star, (20,), optics, PIXEL_M, 1.0, BAND)
+    with pytest.raises(SatsightError, match="one per star"):
+        st.star_photons_image(star, (20, 20), optics, PIXEL_M, 1.0, BAND, scale=np.ones(2))
+    with pytest.raises(SatsightError, match="scale must be"):
+        st.star_photons_image(star, (20, 20), optics, PIXEL_M, 1.0, BAND, scale=-1.0)
     with pytest.raises(SatsightError, match="exposure_time_s"):
         lm.limiting_magnitude(optics, det.DetectorParameters(), 0.0)
     with pytest.raises(SatsightError, match="snr"):

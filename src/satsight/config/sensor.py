@@ -51,7 +51,9 @@ class DetectorConfig(_Strict):
     """Detector parameters; defaults describe a CCD231-84-class sensor (see
     ``satsight.sensor.detector.DetectorParameters`` for the source of each)."""
 
-    quantum_efficiency: float = Field(default=_DETECTOR.quantum_efficiency, gt=0, le=1)
+    quantum_efficiency: float | None = Field(default=_DETECTOR.quantum_efficiency, gt=0, le=1)
+    """null (default): the CCD231-84 QE curve, photon-weighted over the band by each light's
+    spectrum; a number in (0, 1]: that QE for every light."""
     dark_current_e_per_s: float = Field(default=_DETECTOR.dark_current_e_per_s, ge=0)
     read_noise_e: float = Field(default=_DETECTOR.read_noise_e, ge=0)
     full_well_e: float = Field(default=_DETECTOR.full_well_e, gt=0)

@@ -3,7 +3,9 @@
 What ``satsight camera`` prints. The reference exposure is the one the default exposure
 rule (``mode: auto``) gives a sunlit grey target: a Lambertian surface of albedo 0.3
 facing the Sun, seen along its normal, radiance L = rho E_sun / pi (E_sun the in-band
-irradiance at 1 AU), filled to the rule's fraction of full well.
+irradiance at 1 AU), filled to the rule's fraction of full well. The detector's quantum
+efficiency is the chain's (``SensorChain.quantum_efficiency``) for the target and the star's
+own (its black body) for the limiting magnitudes.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ def reference_exposure_s(sensor: SensorChain, albedo: float = REFERENCE_ALBEDO) 
         sensor.band_nm,
         sensor.exposure.fill_fraction,
         sensor.effective_wavelength_m,
+        quantum_efficiency=sensor.quantum_efficiency,
     )
     if sensor.exposure.mode == "fixed":
         return sensor.exposure.time_s
@@ -57,6 +60,7 @@ def camera_report(sensor: SensorChain) -> dict:
             "v_mag": details.v_mag,
             "photons": details.photons,
             "aperture_px": details.n_pixels,
+            "star_quantum_efficiency": details.quantum_efficiency,
         }
 
     return {
@@ -67,6 +71,8 @@ def camera_report(sensor: SensorChain) -> dict:
         "ifov_urad": camera.ifov_rad * 1e6,
         "fov_deg": [math.degrees(camera.fov_x_rad), math.degrees(camera.fov_y_rad)],
         "effective_wavelength_nm": lam * 1e9,
+        "quantum_efficiency": sensor.quantum_efficiency,
+        "quantum_efficiency_source": sensor.quantum_efficiency_source,
         "airy_radius_px": airy_radius_m / camera.pixel_pitch_m,
         "nyquist_over_cutoff": (1 / (2 * camera.pixel_pitch_m)) / (1 / (lam * optics.f_number)),
         "reference_exposure": {

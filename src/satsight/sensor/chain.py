@@ -27,6 +27,20 @@ one energy, h c / lambda_eff (lambda_eff of the whole band), so each channel's p
 weighted by lambda_c / lambda_eff first: the irradiance handed to the detector is
 "photon-equivalent", equal to the true power for grey surfaces. Star photons are counted per
 star from its own spectrum and handed to the detector the same way, so their count is exact.
+
+Quantum efficiency: the detector turns photons into electrons with one eta, ``SensorChain.
+quantum_efficiency``: the detector's scalar override, or its QE curve's photon-weighted mean
+over the band in the sunlight spectrum (``satsight.sensor.band_qe``; 0.8127 for the
+CCD231-84 curve and E-490 over 450-900 nm). The curve's mean over each third differs (0.904,
+0.886 and 0.627 for 450-600, 600-750 and 750-900 nm), and the materials' channel
+reflectances are already weighted by the curve within each third
+(``satsight.scene.band_reflectance``), so each channel's photons are weighted by
+eta_c / eta as well: the detector then counts sum_c eta_c N_c electrons, the integral of
+reflectance x photons x QE over the band (exact for reflectances flat within each third),
+and a grey surface still reads its photon-weighted mean eta (the weights
+``channel_detected_weights`` sum to 1 to ~1e-7). Each star's photons are weighted by
+eta_star / eta, eta_star the curve's mean over the star's black body
+(``star_quantum_efficiency_ratio``). With a scalar override every ratio is 1.
 """
 
 from __future__ import annotations
@@ -47,7 +61,7 @@ from satsight.lighting.solar_spectrum import (
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
 from satsight.sensor.convolution import apply_optics
 from satsight.sensor.detector import DetectorParameters, mean_photon_energy_j
-from satsight.sensor.exposure import exposure_for_fill, simulate_detector
+from satsight.sensor.exposure import exposure_for_fill, mean_electrons_image, simulate_detector
 from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.mtf import band_wavelengths_m, check_render_sampling
 from satsight.sensor.optics import Optics, focal_plane_irradiance_w_m2
@@ -132,6 +146,12 @@ class SensorChain:
     the reflected light. exposure: the exposure rule. camera_seed: fixes the detector's
     PRNU and DSNU maps. supersampling, samples_per_pixel: the renderer's sub-pixel sampling
     (``RenderSettings``), for which the blur kernel ``psf`` is designed (``frame_kernel``).
+
+    Derived: quantum_efficiency, the eta of sunlit light over the band, and
+    quantum_efficiency_source, where it comes from (``DetectorParameters.
+    band_quantum_efficiency``); channel_quantum_efficiency, (3,) RGB, each third's eta;
+    channel_photon_weights, (3,) RGB, each channel's power weight times lambda_c /
+    lambda_eff; channel_detected_weights, those times eta_c / eta (see the module doc).
     """
 
     camera: PinholeCamera
@@ -146,7 +166,11 @@ class SensorChain:
     psf: np.ndarray = field(init=False, repr=False)
     channel_weights: np.ndarray = field(init=False, repr=False)
     channel_photon_weights: np.ndarray = field(init=False, repr=False)
+    channel_quantum_efficiency: np.ndarray = field(init=False, repr=False)
+    channel_detected_weights: np.ndarray = field(init=False, repr=False)
     effective_wavelength_m: float = field(init=False)
+    quantum_efficiency: float = field(init=False)
+    quantum_efficiency_source: str = field(init=False)
 
     def __post_init__(self) -> None:
         lo, hi = check_band_nm(self.band_nm)
@@ -178,13 +202,36 @@ class SensorChain:
             for a, b in zip(edges[2::-1], edges[3:0:-1], strict=True)
         ]
         power = np.array([red, green, blue])
+        photon_weights = power * np.array(lam_rgb) / lam_eff
+        eta = self.detector.band_quantum_efficiency((lo, hi), self.spectrum)
+        eta_rgb = np.array(
+            [
+                self.detector.band_quantum_efficiency((float(a), float(b)), self.spectrum)
+                for a, b in zip(edges[2::-1], edges[3:0:-1], strict=True)
+            ]
+        )
         object.__setattr__(self, "band_nm", (lo, hi))
         object.__setattr__(self, "psf", psf.astype(np.float32))
         object.__setattr__(self, "channel_weights", power.astype(np.float32))
+        object.__setattr__(self, "channel_photon_weights", photon_weights.astype(np.float32))
+        object.__setattr__(self, "channel_quantum_efficiency", eta_rgb)
         object.__setattr__(
-            self, "channel_photon_weights", (power * np.array(lam_rgb) / lam_eff).astype(np.float32)
+            self, "channel_detected_weights", (photon_weights * eta_rgb / eta).astype(np.float32)
         )
         object.__setattr__(self, "effective_wavelength_m", lam_eff)
+        object.__setattr__(self, "quantum_efficiency", eta)
+        object.__setattr__(
+            self,
+            "quantum_efficiency_source",
+            self.detector.quantum_efficiency_source((lo, hi), self.spectrum),
+        )
+
+    def star_quantum_efficiency_ratio(self, temperature_k: np.ndarray) -> np.ndarray:
+        """(N,) eta_star / eta for stars at ``temperature_k`` (N,) K: the factor that makes
+        a star's photons, added to the focal plane like reflected light, give its own
+        electrons (``DetectorParameters.star_quantum_efficiency``; 1 with a scalar override)."""
+        eta_star = self.detector.star_quantum_efficiency(self.band_nm, temperature_k)
+        return eta_star / self.quantum_efficiency
 
     @property
     def photon_energy_j(self) -> float:
@@ -211,12 +258,14 @@ class SensorChain:
         rendered scene, after the camera equation and the blur (W m^-2, pixel-averaged).
 
         "Photon-equivalent": each channel's power is weighted by its photons, lambda_c /
-        lambda_eff, so the detector's single photon energy h c / lambda_eff counts every
-        channel's photons right (exact power for grey surfaces, whose weights sum to 1).
+        lambda_eff, and by its quantum efficiency, eta_c / eta, so the detector's single
+        photon energy h c / lambda_eff and single eta count every channel's electrons right
+        (exact power for grey surfaces, whose weights sum to 1).
         Only the bounding box of the non-zero radiance (frame and margin ring) is combined
         (the renderer's background is 0; with supersampling, edge pixels whose centre misses
         the target still carry light), with the camera equation folded into the channel
-        weights: E = sum_c w_c (lambda_c / lambda_eff) L_c pi tau (1 - eps^2) / (4 N^2).
+        weights: E = sum_c w_c (lambda_c / lambda_eff) (eta_c / eta) L_c pi tau (1 - eps^2)
+        / (4 N^2).
 
         The blur reaches ``margin_px`` pixels across the frame's edge. When the image carries
         the radiance of a ring at least that wide around the frame
@@ -236,7 +285,7 @@ class SensorChain:
         ring = image.margin_radiance_w_m2_sr
         m = int(image.margin_px) if ring is not None else 0
         factor = float(focal_plane_irradiance_w_m2(1.0, self.optics))
-        weights = (self.channel_photon_weights * np.float32(factor)).astype(np.float32)
+        weights = (self.channel_detected_weights * np.float32(factor)).astype(np.float32)
         # The frame and its ring on one (H + 2m, W + 2m) grid; np.zeros maps pages lazily,
         # so the empty parts cost nothing.
         focal = np.zeros((h + 2 * m, w + 2 * m), dtype=np.float32)
@@ -302,7 +351,12 @@ class SensorChain:
         if level is None:
             return rule.time_s
         t = exposure_for_fill(
-            level, self.detector, self.band_nm, rule.fill_fraction, self.effective_wavelength_m
+            level,
+            self.detector,
+            self.band_nm,
+            rule.fill_fraction,
+            self.effective_wavelength_m,
+            quantum_efficiency=self.quantum_efficiency,
         )
         return float(np.clip(t, rule.min_time_s, rule.max_time_s))
 
@@ -318,7 +372,7 @@ class SensorChain:
             return None
         d = self.detector
         rate_e_per_s = (
-            d.quantum_efficiency * level * d.pixel_area_m2 / self.photon_energy_j
+            self.quantum_efficiency * level * d.pixel_area_m2 / self.photon_energy_j
             + d.dark_current_e_per_s
         )
         return rate_e_per_s * exposure_time_s / d.full_well_e
@@ -342,6 +396,20 @@ class SensorChain:
         """W m^-2 of focal-plane irradiance per mean photon per pixel over the exposure."""
         return self.photon_energy_j / (self.detector.pixel_area_m2 * exposure_time_s)
 
+    def mean_electrons(self, irradiance_w_m2: np.ndarray, exposure_time_s: float) -> np.ndarray:
+        """(H, W) float64 noise-free mean electrons per pixel of a focal-plane irradiance
+        image (W m^-2) over ``exposure_time_s``: what ``read_out`` draws its shot noise
+        around, before the full well (eta PRNU E A t / <E_ph> + (D + DSNU) t)."""
+        return mean_electrons_image(
+            irradiance_w_m2,
+            exposure_time_s,
+            self.detector,
+            self.band_nm,
+            self.camera_seed,
+            self.effective_wavelength_m,
+            quantum_efficiency=self.quantum_efficiency,
+        )
+
     def read_out(
         self,
         irradiance_w_m2: np.ndarray,
@@ -358,6 +426,7 @@ class SensorChain:
             rng,
             self.camera_seed,
             self.effective_wavelength_m,
+            quantum_efficiency=self.quantum_efficiency,
         )
         full_well_dn = min(self.detector.full_well_dn, float(self.detector.adc_max_dn))
         return DnImage(

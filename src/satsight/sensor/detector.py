@@ -43,7 +43,8 @@ import numpy as np
 
 from satsight.constants import DEFAULT_BAND_NM, PLANCK_J_S, SPEED_OF_LIGHT_M_S
 from satsight.errors import SatsightError
-from satsight.lighting.solar_spectrum import check_band_nm
+from satsight.lighting.solar_spectrum import Spectrum, check_band_nm
+from satsight.sensor.band_qe import blackbody_weighted_qe, solar_weighted_qe
 
 
 # --------------------------------------------------------------------------------------
@@ -61,10 +62,14 @@ class DetectorParameters:
     """Electro-optical parameters of a CCD231-84-class back-illuminated CCD.
 
     pixel_pitch_m: pixel size (square pixels), 15 um. Source: CCD231-84 datasheet.
-    quantum_efficiency: band-averaged quantum efficiency eta over the pass band (0-1),
-        electrons per incident photon; 0.9. Assumption: band average over 450-900 nm of
-        the datasheet's "astro multi-2" coating curve (above 90 % from ~450 to ~800 nm,
-        falling towards 900 nm).
+    quantum_efficiency: None (default) or a scalar override eta in (0, 1], electrons per
+        incident photon. None takes eta from the CCD231-84 astro multi-2 curve
+        (``satsight.camera.quantum_efficiency``, the curve the material library's band
+        integration weights by too), photon-weighted over the band by the light's own
+        spectrum (``satsight.sensor.band_qe``): 0.813 for sunlight (ASTM E-490) over
+        450-900 nm, 0.74-0.85 for stars from 3000 K to 20000 K (see
+        ``band_quantum_efficiency`` and ``star_quantum_efficiency``). A number is used as
+        it is for every spectrum and wavelength.
     dark_current_e_per_s: mean dark current per pixel, 3 e-/pixel/hour = 8.3e-4 e-/s.
         Source: CCD231-84 datasheet, dark signal of a few e-/pixel/hour at -100 C
         (3 e-/pixel/hour chosen).
@@ -90,7 +95,7 @@ class DetectorParameters:
     """
 
     pixel_pitch_m: float = 15e-6
-    quantum_efficiency: float = 0.9
+    quantum_efficiency: float | None = None
     dark_current_e_per_s: float = 3.0 / 3600.0
     read_noise_e: float = 5.0
     full_well_e: float = 350e3
@@ -106,9 +111,18 @@ class DetectorParameters:
             if not ok:
                 raise SatsightError(f"{what}; got {value!r}. {fix}")
 
+        qe = self.quantum_efficiency
+        if qe is not None:
+            need(
+                _finite(qe) and 0.0 < float(qe) <= 1.0,  # type: ignore[arg-type]
+                "quantum_efficiency must be None (the detector's QE curve) or a number in "
+                "(0, 1] electrons per photon",
+                qe,
+                "Give a fraction, e.g. 0.8 for 80 %, or leave it unset for the curve.",
+            )
+            object.__setattr__(self, "quantum_efficiency", float(qe))  # type: ignore[arg-type]
         for name in (
             "pixel_pitch_m",
-            "quantum_efficiency",
             "dark_current_e_per_s",
             "read_noise_e",
             "full_well_e",
@@ -125,12 +139,6 @@ class DetectorParameters:
             "pixel_pitch_m must be > 0 m",
             self.pixel_pitch_m,
             "Give the pixel size in metres (15e-6 for 15 um).",
-        )
-        need(
-            0.0 < self.quantum_efficiency <= 1.0,
-            "quantum_efficiency must be in (0, 1] electrons per photon",
-            self.quantum_efficiency,
-            "Give a fraction, e.g. 0.9 for 90 %.",
         )
         need(
             self.dark_current_e_per_s >= 0,
@@ -202,6 +210,43 @@ class DetectorParameters:
     def pixel_area_m2(self) -> float:
         """Pixel area (m^2), pitch squared (100 % fill factor of a back-illuminated CCD)."""
         return self.pixel_pitch_m**2
+
+    def band_quantum_efficiency(
+        self, band_nm: tuple[float, float] = DEFAULT_BAND_NM, spectrum: Spectrum = "astm_e490"
+    ) -> float:
+        """Mean electrons per photon of sunlit light over ``band_nm``: the scalar override,
+        or the QE curve's photon-weighted mean over the band in ``spectrum``
+        (:func:`satsight.sensor.band_qe.solar_weighted_qe`; 0.8127 for E-490 over 450-900 nm)."""
+        if self.quantum_efficiency is not None:
+            check_band_nm(band_nm)
+            return self.quantum_efficiency
+        return solar_weighted_qe(check_band_nm(band_nm), spectrum)
+
+    def star_quantum_efficiency(
+        self, band_nm: tuple[float, float], temperature_k: np.ndarray | float
+    ) -> np.ndarray:
+        """(N,) mean electrons per photon of stars (black bodies at ``temperature_k``, (N,)
+        K) over ``band_nm``: the scalar override, or the QE curve's photon-weighted mean in
+        each star's spectrum (:func:`satsight.sensor.band_qe.blackbody_weighted_qe`)."""
+        band = check_band_nm(band_nm)
+        if self.quantum_efficiency is None:
+            return blackbody_weighted_qe(band, temperature_k)
+        t = np.atleast_1d(np.asarray(temperature_k, dtype=np.float64))
+        return np.full(t.shape, self.quantum_efficiency)
+
+    def quantum_efficiency_source(
+        self, band_nm: tuple[float, float] = DEFAULT_BAND_NM, spectrum: Spectrum = "astm_e490"
+    ) -> str:
+        """Where ``band_quantum_efficiency`` comes from, in words (for labels)."""
+        if self.quantum_efficiency is not None:
+            return "scalar override"
+        lo, hi = check_band_nm(band_nm)
+        names = {"astm_e490": "ASTM E-490", "blackbody_5778k": "5778 K black body"}
+        light = names.get(spectrum, spectrum)
+        return (
+            f"CCD231-84 curve, solar-photon weighted ({light}) over [{lo:g}, {hi:g}] nm; "
+            "stars: their own black body"
+        )
 
     @property
     def adc_max_dn(self) -> int:

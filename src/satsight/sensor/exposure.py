@@ -52,6 +52,23 @@ from satsight.sensor.noise import (
 from satsight.sensor.threads import check_threads, run_jobs
 
 
+def resolve_qe(
+    params: DetectorParameters, band_nm: tuple[float, float], quantum_efficiency: float | None
+) -> float:
+    """The eta an exposure uses: ``quantum_efficiency`` when given (checked to lie in
+    (0, 1]), else the detector's for sunlight over the band,
+    ``params.band_quantum_efficiency(band_nm)`` (its override or its curve's E-490
+    photon-weighted mean)."""
+    if quantum_efficiency is None:
+        return params.band_quantum_efficiency(band_nm)
+    if not (_finite(quantum_efficiency) and 0.0 < float(quantum_efficiency) <= 1.0):
+        raise SatsightError(
+            f"quantum_efficiency must be in (0, 1] electrons per photon, got "
+            f"{quantum_efficiency!r}; give a fraction or None for the detector's own"
+        )
+    return float(quantum_efficiency)
+
+
 # --------------------------------------------------------------------------------------
 # 3. Charge collection
 # --------------------------------------------------------------------------------------
@@ -142,11 +159,14 @@ def mean_electrons_image(
     band_nm: tuple[float, float],
     camera_seed: int,
     effective_wavelength_m: float | None = None,
+    *,
+    quantum_efficiency: float | None = None,
 ) -> np.ndarray:
     """Noise-free mean electrons per pixel (H, W, e-, float64), before saturation.
 
     Photon collection and the mean of charge generation, with this camera's fixed
-    pattern: eta PRNU E A t / <E_ph> + (D + DSNU) t.
+    pattern: eta PRNU E A t / <E_ph> + (D + DSNU) t. eta is ``quantum_efficiency`` when
+    given, else ``params.band_quantum_efficiency(band_nm)`` (see ``resolve_qe``).
     """
     irradiance = _check_nonnegative_image("irradiance_w_m2", irradiance_w_m2, "W m^-2")
     _check_image_2d("irradiance_w_m2", irradiance)
@@ -155,7 +175,7 @@ def mean_electrons_image(
     prnu, dsnu = fixed_pattern_maps(irradiance.shape, params, camera_seed)
     return expected_electrons(
         photons,
-        params.quantum_efficiency,
+        resolve_qe(params, band_nm, quantum_efficiency),
         prnu,
         params.dark_current_e_per_s,
         dsnu,
@@ -173,6 +193,7 @@ def simulate_detector(
     effective_wavelength_m: float | None = None,
     *,
     threads: int | None = None,
+    quantum_efficiency: float | None = None,
 ) -> np.ndarray:
     """One exposure: in-band focal-plane irradiance (H, W, W m^-2) to raw DN (H, W, uint16).
 
@@ -183,7 +204,8 @@ def simulate_detector(
     the readout. Blooming needs whole columns: bands holding over-full pixels wait, the
     affected columns bloom, and every band whose electrons changed is read out again from
     the same read-noise draws. Temporal noise comes only from ``rng``: the same generator
-    state gives the same bytes, whatever ``threads`` (default: all cores).
+    state gives the same bytes, whatever ``threads`` (default: all cores). eta is
+    ``quantum_efficiency`` when given, else ``params.band_quantum_efficiency(band_nm)``.
     A half-lit 4096 x 4112 frame takes ~0.1 s on 2 cores, plus ~0.08 s for a camera's first
     frame (its fixed-pattern maps); ``benchmarks/sensor_bench.py`` measures it.
     """
@@ -195,7 +217,8 @@ def simulate_detector(
     prnu, dark_e_per_s = _camera_maps(irradiance.shape, params, camera_seed, n_threads)
     h, w = irradiance.shape
     # Photo-electrons per second per W m^-2: eta A / <E_ph>.
-    rate_per_w_m2 = params.quantum_efficiency * params.pixel_area_m2 / photon_energy_j
+    eta = resolve_qe(params, band_nm, quantum_efficiency)
+    rate_per_w_m2 = eta * params.pixel_area_m2 / photon_energy_j
     fw = np.float32(params.full_well_e)
     electrons = np.empty((h, w), dtype=np.float32)
     dn = np.empty((h, w), dtype=np.uint16)
@@ -268,12 +291,15 @@ def exposure_for_fill(
     band_nm: tuple[float, float] = DEFAULT_BAND_NM,
     fill_fraction: float = 0.7,
     effective_wavelength_m: float | None = None,
+    *,
+    quantum_efficiency: float | None = None,
 ) -> float:
     """Exposure time (s) that puts a pixel at ``irradiance_w_m2`` at fill_fraction x full well.
 
     Closed form from the mean signal (PRNU = 1, DSNU = 0):
     t = f FW / (eta E A / <E_ph> + D). Pass the target's peak irradiance, or a high
     percentile of it (e.g. ``np.percentile(irr[mask], 99)``) to let a few glints saturate.
+    eta is ``quantum_efficiency`` when given, else ``params.band_quantum_efficiency(band_nm)``.
     """
     if not (_finite(irradiance_w_m2) and irradiance_w_m2 >= 0):
         raise SatsightError(
@@ -286,8 +312,9 @@ def exposure_for_fill(
             "of full well"
         )
     photon_energy_j = mean_photon_energy_j(band_nm, effective_wavelength_m)
+    eta = resolve_qe(params, band_nm, quantum_efficiency)
     rate_e_per_s = (
-        params.quantum_efficiency * float(irradiance_w_m2) * params.pixel_area_m2
+        eta * float(irradiance_w_m2) * params.pixel_area_m2
     ) / photon_energy_j + params.dark_current_e_per_s
     if rate_e_per_s <= 0:
         raise SatsightError(

@@ -31,6 +31,7 @@ class LimitingMagnitude:
     aperture: (S, S) bool, the aperture's pixels within a stamp centred on the star.
     fraction: (S, S) float, the star's photon fraction per pixel (the PSF stamp).
     noise_var_per_pixel_e2: read^2 + dark t + g^2 / 12 (e^2).
+    quantum_efficiency: the detector's electrons per photon for the star's spectrum.
     """
 
     v_mag: float
@@ -40,6 +41,7 @@ class LimitingMagnitude:
     aperture: np.ndarray
     fraction: np.ndarray
     noise_var_per_pixel_e2: float
+    quantum_efficiency: float
 
 
 def limiting_magnitude_details(
@@ -75,7 +77,8 @@ def limiting_magnitude_details(
     var_px = p.read_noise_e**2 + p.dark_current_e_per_s * t + p.conversion_gain_e_per_dn**2 / 12
     s2 = float(snr) ** 2
     signal = 0.5 * (s2 + np.sqrt(s2 * s2 + 4.0 * s2 * n * var_px))  # x^2 = S^2 (x + n var)
-    photons = signal / (p.quantum_efficiency * enclosed)
+    eta = float(p.star_quantum_efficiency(band, float(temperature_k))[0])
+    photons = signal / (eta * enclosed)
     best = int(np.argmin(photons))
     aperture = np.zeros(frac.size, dtype=bool)
     aperture[order[: best + 1]] = True
@@ -89,6 +92,7 @@ def limiting_magnitude_details(
         aperture=aperture.reshape(frac.shape),
         fraction=frac,
         noise_var_per_pixel_e2=float(var_px),
+        quantum_efficiency=eta,
     )
 
 
@@ -107,7 +111,9 @@ def limiting_magnitude(
     the star's pixel-integrated PSF, star centred on a pixel; the best case), with the CCD
     equation (Howell, Handbook of CCD Astronomy, 2nd ed., Eq. 4.4; EMVA 1288 R4.0 Sec. 2):
     SNR = x / sqrt(x + n (sigma_read^2 + D t + g^2 / 12)), x = eta F_n N the photo-electrons
-    in the aperture, F_n its enclosed fraction, g^2 / 12 the quantisation noise (e^2). For
+    in the aperture, F_n its enclosed fraction, g^2 / 12 the quantisation noise (e^2), eta
+    the detector's QE for the star's black body (``DetectorParameters.
+    star_quantum_efficiency``: its curve's photon-weighted mean, or its override). For
     each n the quadratic x^2 - S^2 x - S^2 n B = 0 gives x; the smallest N over n wins.
     The sky background is zero (space; stray light ignored), PRNU ignored (< 1 % of a faint
     signal). V follows from N = flux(V) A tau t with :func:`star_photon_flux_m2_s`.

@@ -151,13 +151,14 @@ def star_photons_image(
     band_nm: tuple[float, float],
     stamp_radius_px: int = DEFAULT_STAMP_RADIUS_PX,
     out: np.ndarray | None = None,
-    scale: float = 1.0,
+    scale: float | np.ndarray = 1.0,
 ) -> np.ndarray:
     """(H, W) float32 mean photons per pixel reaching the detector from the stars.
 
     With ``out`` ((H, W) float32), the stars' photons times ``scale`` are added into it in
     place and it is returned (e.g. scale = photon energy / (pixel area x t) adds them as
-    focal-plane irradiance without a full-frame temporary).
+    focal-plane irradiance without a full-frame temporary). ``scale`` is one number or
+    (M,), one per star (e.g. times each star's quantum efficiency over the detector's).
 
     Each star delivers N = photon_flux_m2_s x pi D^2 / 4 (1 - eps^2) x tau x t photons,
     spread over a (2 R + 1)^2 stamp by :func:`psf_stamps` (pixel-integrated, photon-weighted
@@ -189,9 +190,13 @@ def star_photons_image(
             raise SatsightError(
                 f"out must be a float32 (H, W) = {(h, w)} image; got {image.dtype} {image.shape}"
             )
-    if not (math.isfinite(float(scale)) and scale >= 0):
-        raise SatsightError(f"scale must be a finite number >= 0; got {scale!r}")
-    counts = counts * float(scale)
+    factor = np.asarray(scale, dtype=np.float64)
+    if factor.shape not in ((), (len(stars),)) or not np.all(np.isfinite(factor) & (factor >= 0)):
+        raise SatsightError(
+            f"scale must be a finite number >= 0, or ({len(stars)},) of them, one per star; "
+            f"got {scale!r}"
+        )
+    counts = counts * factor
     R = int(stamp_radius_px)
     cx = np.rint(stars.x_px).astype(np.int64)
     cy = np.rint(stars.y_px).astype(np.int64)
