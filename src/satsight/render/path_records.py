@@ -57,6 +57,10 @@ class PathVertex:
     of the ray's footprint in texture units, or None. part: part index. wo: unit direction
     towards the previous vertex. face_side: index into per-face-side tables (see
     ``TargetGeometry.face_side``). throughput: the path's weight so far (Color3f).
+    normal_smooth: unit interpolated corner normal on the side of wo, the horizon of light
+    sources, or None where it is normal_geo. lift_m: vector from the point to the smooth
+    surface, where shadow rays towards light sources start, or None (see
+    ``satsight.render.target_geometry``).
     """
 
     point_m: object
@@ -68,6 +72,8 @@ class PathVertex:
     wo: object
     face_side: object
     throughput: object
+    normal_smooth: object = None
+    lift_m: object = None
 
 
 @dataclass(frozen=True, eq=False)

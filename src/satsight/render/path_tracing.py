@@ -81,6 +81,8 @@ class PathTracer:
                 start.surface.face, start.surface.normal_geo, -start.direction_body
             ),
             throughput=mi.Color3f(1.0),
+            normal_smooth=start.shading.normal_smooth,
+            lift_m=start.shading.lift_m,
         )
         active = start.hit
         for depth in range(self.settings.bounces + 1):
@@ -128,6 +130,8 @@ class PathTracer:
                 wo=wo,
                 face_side=self._geometry.face_side(found.surface.face, ng, wo),
                 throughput=throughput,
+                normal_smooth=shade.normal_smooth,
+                lift_m=shade.lift_m,
             )
             # Occlusion test and hit search agree but for rounding at edges; a path whose
             # ray finds no surface after all ends there.
@@ -149,7 +153,7 @@ class PathTracer:
         sky, _ = self._body_light.radiance(bodies, origin, wi, ok)
         ok &= dr.max(sky) > 0.0
         ok &= self._geometry.visible(origin, wi, ok, rng(light_segment(depth)))
-        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local, smooth_horizon=True)
         pdf_brdf = surface.pdf(params, wi_local, wo_local)
         mis = dr.square(pdf_light) / dr.maximum(dr.square(pdf_light) + dr.square(pdf_brdf), 1e-30)
         weight = wi_local.z * mis / dr.maximum(pdf_light, 1e-30)
@@ -172,16 +176,22 @@ class PathTracer:
         shading = mi.Frame3f(n)
         wo_local = shading.to_local(wo)
         origin = p + vertex.normal_geo * frame.ray_offset_m  # off the geometric surface
+        # Shadow rays towards light sources start on the smooth surface, and light from
+        # below that surface's horizon is absent (Hanika 2021, see target_geometry).
+        light_origin = origin if vertex.lift_m is None else origin + vertex.lift_m
+        horizon = vertex.normal_geo if vertex.normal_smooth is None else vertex.normal_smooth
         params = surface.at(part, active, vertex, shading)  # gathered once per surface hit
         radiance = mi.Color3f(0.0)
         if s.sun == "delta":
             wi = frame.sun_direction_body
             wi_local = shading.to_local(wi)
             lit = active & (wi_local.z > 0.0) & (frame.sun_irradiance_w_m2 > 0.0)
-            if self._geometry.shading_normals:  # no light from below the geometric surface
-                lit &= dr.dot(wi, vertex.normal_geo) > 0.0
-            lit &= self._geometry.visible(origin, wi, lit, rng(shading_segment(depth)))
-            f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+            if self._geometry.shading_normals:  # no light from below the surface
+                lit &= dr.dot(wi, horizon) > 0.0
+            lit &= self._geometry.visible(light_origin, wi, lit, rng(shading_segment(depth)))
+            f_diffuse, f_specular = surface.eval_parts(
+                params, wi_local, wo_local, smooth_horizon=True
+            )
             irradiance = frame.sun_irradiance_w_m2 * wi_local.z
             radiance += dr.select(lit, (f_diffuse + f_specular) * irradiance, 0.0)
         if s.environment == "unshadowed":
@@ -194,7 +204,7 @@ class PathTracer:
             radiance += dr.select(active, kd * diffuse_env, 0.0)
         if frame.bodies_light_target:
             radiance += self._body_light_sample(
-                frame, surface, params, shading, origin, wo_local, active, depth, rng, ld
+                frame, surface, params, shading, light_origin, wo_local, active, depth, rng, ld
             )
         last = depth == s.bounces
         if last and not env_on:

@@ -27,11 +27,14 @@ if TYPE_CHECKING:
 
 @dataclasses.dataclass(frozen=True)
 class SurfaceHit:
-    """The model's parameters at a hit, and the geometric normal in the shading frame
-    (None where it equals the shading normal)."""
+    """The model's parameters at a hit, the geometric normal in the shading frame (None
+    where it equals the shading normal) and the smooth surface's normal there (the
+    interpolated corner normal, the horizon of light sources; None where it is the
+    geometric normal)."""
 
     params: object
     n_geo_local: object = None
+    n_smooth_local: object = None
 
 
 def _phong_tables(materials: Sequence[Material]) -> dict[str, np.ndarray]:
@@ -168,10 +171,12 @@ class SurfaceModel:
         if self._textured and hit is not None:
             self._apply_textures(changes, part, active, hit)
         params = dataclasses.replace(self._params, **changes)
-        n_geo_local = None
+        n_geo_local = n_smooth_local = None
         if self.shading_normals and hit is not None and frame is not None:
             n_geo_local = frame.to_local(hit.normal_geo)
-        return SurfaceHit(params, n_geo_local)
+            if hit.normal_smooth is not None:
+                n_smooth_local = frame.to_local(hit.normal_smooth)
+        return SurfaceHit(params, n_geo_local, n_smooth_local)
 
     def _apply_textures(self, values: dict, part, active, hit: PathVertex) -> None:
         """Replace the gathered values by their textured ones where a part has textures."""
@@ -234,12 +239,18 @@ class SurfaceModel:
             return params.params, params.n_geo_local
         return params, None
 
-    def eval_parts(self, params, wi, wo):
+    def eval_parts(self, params, wi, wo, smooth_horizon: bool = False):
         """(diffuse, specular) parts of f_r(wi, wo), sr^-1 per channel (Color3f each); 0
-        for light from below the geometric surface."""
+        for light from below the geometric surface.
+
+        smooth_horizon: the horizon is the smooth surface's (``SurfaceHit.n_smooth_local``)
+        instead of the triangle's, for light sources whose shadow ray starts on that
+        surface (``satsight.render.target_geometry``)."""
         import drjit as dr
 
         model, n_geo = self._unwrap(params)
+        if smooth_horizon and isinstance(params, SurfaceHit) and params.n_smooth_local is not None:
+            n_geo = params.n_smooth_local
         f_diffuse, f_specular = self._functions[0](wi, wo, model)
         if n_geo is not None:
             above = dr.dot(wi, n_geo) > 0.0

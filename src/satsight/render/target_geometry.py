@@ -11,14 +11,43 @@ interpolated with the hit's barycentrics; where a part has a normal map the norm
 tilted in the tangent frame of the triangle (tangent and bitangent: the directions of
 increasing u and v on the triangle, from its texture coordinates, made orthonormal to
 the interpolated normal). The geometric normal keeps its roles: it decides which side a
-ray sees, it offsets the origins of shadow and bounce rays, and light from below it
-(``SurfaceModel``) never counts, so a shading normal cannot let light through a surface.
-Where the viewer is within ``VIEW_COSINE_MIN`` of the shading horizon, or below it (a
+ray sees, it offsets the origins of shadow and bounce rays, and bounce directions below it
+(``SurfaceModel``) never count, so a shading normal cannot let light through a surface;
+light sources are seen from the smooth surface instead (below).
+Where the viewer is closer to the shading horizon than to the triangle's (cosine below
+that with the geometric normal) and within ``VIEW_COSINE_MIN`` of it, or below it (a
 normal bent away from the viewer at a silhouette), the shading normal is tilted towards
-the viewer until their cosine is ``VIEW_COSINE_MIN`` (a simple form of the shading-normal
-adaptation of Keller et al. 2017, "The Iray light transport simulation and rendering
-system", arXiv:1705.01263, section "Bump and normal mapping"): without it such pixels
-would turn black.
+the viewer until their cosine is the smaller of ``VIEW_COSINE_MIN`` and the geometric
+one (a simple form of the shading-normal adaptation of Keller et al. 2017, "The Iray
+light transport simulation and rendering system", arXiv:1705.01263, section "Bump and
+normal mapping"): without it such pixels would turn black. A smooth surface seen at
+grazing angles, as a finely tessellated sphere near its limb, keeps its normals (tilting
+them there towards the viewer turned them from the Sun and cost a sphere 4 % of its light
+at 170 degrees phase).
+
+The smooth surface and the shadow terminator. Corner normals describe a smooth surface
+that the flat triangles only approximate: on a convex part it bulges out of each
+triangle, and near the terminator the triangle's own plane, or its neighbours, hide
+light that the smooth surface receives (the "shadow terminator"). Light sources tested
+by a shadow ray (the Sun, the Earth and the Moon) are therefore seen from the smooth
+surface, as in Hanika 2021 ("Hacking the shadow terminator", Ray Tracing Gems II, ch. 4,
+doi:10.1007/978-1-4842-7185-8_4): their shadow ray starts at the hit moved onto the
+tangent planes of the triangle's corners,
+
+    p' = p - sum_i b_i min(0, (p - p_i).n_i) n_i
+
+(b_i the barycentrics, p_i the corners, n_i their normals on the viewer's side), and
+their horizon is that of the interpolated normal (``ShadingGeometry.normal_smooth``,
+before normal mapping and view adaptation) instead of the triangle's. Only convex
+corners move the point (the min), so where the surface is flat or concave the shadow ray
+starts on the triangle, and the triangle itself still blocks light from below it.
+Chosen over the shadowing terms of Chiang et al. 2019 ("Taming the shadow terminator",
+SIGGRAPH 2019 talks) and of Estevez et al. 2019 (Ray Tracing Gems, ch. 12), which
+smooth the terminator by removing light, so a smooth sphere would stay too dark: the
+moved origin gives back the light the smooth surface receives and no more, since a
+convex closed mesh lies inside its smooth surface and the moved shadow ray escapes where
+that surface is lit. A normal map describes no displaced surface: it moves neither the
+point nor the horizon.
 """
 
 from __future__ import annotations
@@ -34,7 +63,8 @@ from satsight.scene.mesh import TargetMesh
 # Shadow- and bounce-ray origin offset along the normal, relative to the target's size.
 _RAY_OFFSET_PER_M = 2e-5
 _MIN_RAY_OFFSET_M = 1e-5
-# Smallest cosine between the viewer and the shading normal (see the module docstring).
+# Smallest cosine between the viewer and the shading normal where that between the viewer
+# and the geometric normal is larger (see the module docstring).
 VIEW_COSINE_MIN = 0.05
 # Grazing views stretch a pixel's footprint by 1 / cos; capped at 1 / 0.01 (mip-mapping).
 _MIN_FOOTPRINT_COSINE = 0.01
@@ -88,13 +118,19 @@ class ShadingGeometry:
     adapted to the view, see the module docstring), body frame. normal_facing: unit
     geometric normal on the viewer's side. uv: texture coordinates (Point2f) or None
     without textures. mip_level: log2 of the ray's footprint on the surface in texture
-    units (mip-mapping), or None.
+    units (mip-mapping), or None. normal_smooth: unit interpolated corner normal on the
+    viewer's side (the smooth surface's normal, before normal mapping and view
+    adaptation), or None where it is the geometric normal (flat meshes). lift_m: vector
+    from the hit to the smooth surface above it (Hanika 2021, see the module docstring),
+    m, or None where there is none; shadow rays towards light sources start there.
     """
 
     normal: object
     normal_facing: object
     uv: object = None
     mip_level: object = None
+    normal_smooth: object = None
+    lift_m: object = None
 
 
 class TargetGeometry:
@@ -238,6 +274,7 @@ class TargetGeometry:
                 lod = dr.log2(footprint_m * scale * dr.rsqrt(cos_view))
         if not self.shading_normals:
             return ShadingGeometry(n_facing, n_facing, uv, lod)
+        corners = None
         if self.smooth:
             w = 1.0 - u - v
             corners = [dr.gather(mi.Vector3f, t, face, active) for t in self.face_n_corner]
@@ -249,13 +286,39 @@ class TargetGeometry:
         # The surface's own side: that of the interpolated normal (files may wind
         # triangles against their normals); the view decides which side is seen.
         flip = dr.dot(n, n_facing) < 0.0
+        smooth = lift = None
+        if corners is not None:
+            smooth = dr.select(flip, -n, n)
+            lift = self._lift(surf, corners, flip, active)
         if self.normal_mapped:
             n = self._normal_mapped(surf, n, uv, lod, active)
         n = dr.select(flip, -n, n)
-        # Keep the viewer above the shading horizon (adaptation).
+        # Keep the viewer above the shading horizon (adaptation), as far as it is above
+        # the triangle's, up to VIEW_COSINE_MIN.
         cos_view = dr.dot(n, wo)
-        bent = dr.normalize(n + (VIEW_COSINE_MIN - cos_view) * wo)
-        return ShadingGeometry(dr.select(cos_view < VIEW_COSINE_MIN, bent, n), n_facing, uv, lod)
+        cos_min = dr.minimum(VIEW_COSINE_MIN, dr.dot(n_facing, wo))
+        bent = dr.normalize(n + (cos_min - cos_view) * wo)
+        n = dr.select(cos_view < cos_min, bent, n)
+        return ShadingGeometry(n, n_facing, uv, lod, smooth, lift)
+
+    def _lift(self, surf: SurfacePoint, corners, flip, active):
+        """Vector from the hit to the smooth surface the corner normals describe, m:
+        -sum_i b_i min(0, (p - p_i).n_i) n_i (Hanika 2021, see the module docstring), the
+        corner normals n_i taken on the side of the interpolated normal ``flip`` gives."""
+        mi, dr = self._mi, self._dr
+        e1 = dr.gather(mi.Vector3f, self.face_e1, surf.face, active)
+        e2 = dr.gather(mi.Vector3f, self.face_e2, surf.face, active)
+        u, v = surf.u, surf.v
+        to_p = u * e1 + v * e2  # p - p0
+        lift = mi.Vector3f(0.0)
+        for b, offset, corner in (
+            (1.0 - u - v, to_p, corners[0]),
+            (u, to_p - e1, corners[1]),
+            (v, to_p - e2, corners[2]),
+        ):
+            n_i = dr.select(flip, -corner, corner)
+            lift -= b * dr.minimum(dr.dot(offset, n_i), 0.0) * n_i
+        return lift
 
     def _normal_mapped(self, surf: SurfacePoint, n, uv, lod, active):
         """n tilted by the part's normal map (tangent space: +x along u, +y along v), at
