@@ -18,7 +18,7 @@ from scipy.ndimage import binary_dilation, binary_erosion, maximum_filter
 
 from cli_runner import invoke_satsight, run_satsight
 from figure_checks import figure_pixels, has_colour
-from qe_oracle import solar_qe
+from qe_oracle import blackbody_qe, solar_qe
 from satsight.camera.pinhole import PinholeCamera
 from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
@@ -475,6 +475,13 @@ def test_camera_command_reports_limiting_magnitudes_and_plots_the_mtf(tmp_path: 
     assert np.all(steps > 2.3) and np.all(steps <= 2.5 + 1e-9)
     reference = report["reference_exposure"]
     assert 1e-4 < reference["exposure_time_s"] < 1e-2
+    # The detector's QE: the curve's photon-weighted mean for sunlight over the band (the
+    # target), and for the 5772 K black body of the limiting-magnitude star.
+    assert report["quantum_efficiency"] == pytest.approx(solar_qe(450.0, 900.0), rel=1e-5)
+    assert report["quantum_efficiency_source"].startswith("CCD231-84 curve")
+    star_qe = float(blackbody_qe(450.0, 900.0, np.array([5772.0]))[0])
+    for row in [reference, *report["limiting_magnitude_snr5"]]:
+        assert row["star_quantum_efficiency"] == pytest.approx(star_qe, rel=1e-5)
     # 7 x 4.5 inches at 100 dpi: the diffraction, pixel and jitter curves in the colour
     # cycle's first three colours, the system MTF in black.
     figure = figure_pixels(out / "system_mtf.png", (700, 450))
