@@ -219,3 +219,40 @@ def test_the_irradiance_label_does_not_depend_on_the_supersampling(llvm_variant)
         labels.append(photometry["target_irradiance_w_m2"])
     assert labels[0] > 0.0
     assert labels[1] == pytest.approx(labels[0], rel=0.01)
+
+
+@pytest.mark.parametrize("side_m", [0.3, 1.0, 10.0])
+def test_the_detector_gets_a_small_plates_signal_through_the_optics(llvm_variant, side_m):
+    """Rendered plate at 50 km through the camera's blur (the frame kernel, its negative
+    lobes filled from their neighbours rather than clipped): the focal-plane irradiance
+    summed over the frame is L pi tau / (4 N^2) x the plate's image area (grey plate: the
+    channel weights sum to 1), within 1.5 % for each of four sub-pixel phases. The optics
+    keep the flux to < 1e-5 (tests/sensor/test_convolution.py); the rest is the grid's."""
+    from satsight.sensor.chain import SensorChain
+    from satsight.sensor.detector import DetectorParameters
+    from satsight.sensor.optics import Optics
+
+    camera = PinholeCamera.wide_field().with_size(96, 96)
+    optics = Optics.for_preset("wide_field")
+    chain = SensorChain(
+        camera=camera,
+        optics=optics,
+        detector=DetectorParameters(pixel_pitch_m=camera.pixel_pitch_m),
+        band_nm=(450.0, 900.0),
+    )
+    renderer = Renderer(_plate(side_m), DIRECT_SUN_ONLY, llvm_variant)
+    light = LightField.sun_only(np.array([0.0, 0.0, 1.0]), E_SUN_W_M2)
+    rng = np.random.default_rng(int(10 * side_m))
+    area_px2 = side_m**2 * (camera.focal_length_px / 50e3) ** 2
+    per_radiance = (
+        math.pi
+        * optics.transmission
+        * (1.0 - optics.obscuration_ratio**2)
+        / (4.0 * optics.f_number**2)
+    )
+    for seed in range(4):
+        image = renderer.render(
+            _shifted(camera, rng), _pose(50e3, rng), light, seed=seed, margin_px=chain.margin_px
+        )
+        focal = chain.focal_plane_irradiance_w_m2(image).sum(dtype=np.float64)
+        assert focal / (L_PLATE * per_radiance * area_px2) == pytest.approx(1.0, abs=0.015)
