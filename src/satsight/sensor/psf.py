@@ -21,6 +21,7 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.fft
 from scipy.special import erf, j1
+from threadpoolctl import threadpool_limits
 
 from satsight.errors import SatsightError
 from satsight.sensor.mtf import (
@@ -276,17 +277,21 @@ def _frame_kernel(
     # (w <- w |e|, renormalised) moves the weighted least squares towards the minimax.
     base = 1.0 / np.maximum(np.abs(target), _RELATIVE_FLOOR)
     axis = np.ones(u.size)
-    for _ in range(_LAWSON_ITERATIONS):
-        weight = base.copy()
-        weight[0, :] *= _AXIS_WEIGHT * axis
-        weight[:, 0] *= _AXIS_WEIGHT * axis
-        weight[0, 0] = _DC_WEIGHT  # K(0) = 1: the blur keeps the power
-        wv = weight.ravel() ** 2
-        normal = basis.T @ (basis * wv[:, None])
-        taps = np.linalg.solve(normal, basis.T @ (target.ravel() * wv))
-        error = np.abs(basis[: u.size] @ taps - target[0]) * base[0]  # relative, on fy = 0
-        axis = axis * np.sqrt(error / error.max()) + 1e-9
-        axis /= axis.mean()
+    # BLAS and LAPACK split their work by thread, which would change the last bits of the
+    # taps (and through them a DN here and there) with the core count: one thread, so the
+    # taps are the same on any machine with this BLAS.
+    with threadpool_limits(limits=1):
+        for _ in range(_LAWSON_ITERATIONS):
+            weight = base.copy()
+            weight[0, :] *= _AXIS_WEIGHT * axis
+            weight[:, 0] *= _AXIS_WEIGHT * axis
+            weight[0, 0] = _DC_WEIGHT  # K(0) = 1: the blur keeps the power
+            wv = weight.ravel() ** 2
+            normal = basis.T @ (basis * wv[:, None])
+            taps = np.linalg.solve(normal, basis.T @ (target.ravel() * wv))
+            error = np.abs(basis[: u.size] @ taps - target[0]) * base[0]  # relative, fy = 0
+            axis = axis * np.sqrt(error / error.max()) + 1e-9
+            axis /= axis.mean()
     quadrant = np.zeros((r + 1, r + 1))
     for k, (i, j) in enumerate(pairs):
         quadrant[i, j] = quadrant[j, i] = taps[k]
