@@ -45,6 +45,7 @@ from satsight.camera.quantum_efficiency import (
 from satsight.constants import DEFAULT_BAND_NM
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import check_band_nm, load_e490
+from satsight.quadrature import trapezoid
 from satsight.scene.material_library import (
     LIBRARY_PREFIX,
     LibraryEntry,
@@ -55,10 +56,6 @@ from satsight.scene.materials import FIRST_MATERIALS, Material
 from satsight.scene.spectra import hemispherical_fresnel
 
 _NM = 1e-9
-
-
-def _trapezoid(y: np.ndarray, x: np.ndarray) -> float:
-    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(x)))
 
 
 def channel_edges_nm(band_nm: tuple[float, float] = DEFAULT_BAND_NM) -> np.ndarray:
@@ -107,12 +104,12 @@ def band_mean(
     e_wl, _ = _e490_nm()
     x = _nodes(lo_nm, hi_nm, e_wl, wl, curve.wavelength_nm)
     w = detected_weights(x, curve)
-    den = _trapezoid(w, x)
+    den = trapezoid(w, x)
     if not den > 0.0:
         raise SatsightError(
             f"the detector sees no sunlight between {lo_nm:g} and {hi_nm:g} nm (QE is 0 there)"
         )
-    return float(_trapezoid(w * np.interp(x, wl, refl), x) / den)
+    return float(trapezoid(w * np.interp(x, wl, refl), x) / den)
 
 
 def channel_reflectance(
@@ -157,7 +154,7 @@ def solar_weighted_reflectance(
     lo, hi = float(band_nm[0]), float(band_nm[1])
     x = _nodes(lo, hi, e_wl, wl)
     w = np.interp(x, e_wl, e_val)
-    return float(_trapezoid(w * np.interp(x, wl, reflectance), x) / _trapezoid(w, x))
+    return float(trapezoid(w * np.interp(x, wl, reflectance), x) / trapezoid(w, x))
 
 
 def base_colour_from_reflectance(

@@ -28,12 +28,9 @@ from satsight.lighting.solar_spectrum import (
     check_band_nm,
     load_e490,
 )
+from satsight.quadrature import trapezoid
 
 _NM = 1e-9
-
-
-def _trapezoid(y: np.ndarray, x: np.ndarray) -> float:
-    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(x)))
 
 
 def _grid_nm(lo: float, hi: float, curve_name: str, fine: bool) -> np.ndarray:
@@ -65,7 +62,7 @@ def solar_weighted_qe(
         photons = planck_shape_per_m5(wl * _NM, PAPER_SUN_TEMPERATURE_K) * wl
     else:
         raise SatsightError(f"unknown spectrum '{spectrum}'; choose astm_e490 or blackbody_5778k")
-    return _trapezoid(photons * curve(wl), wl) / _trapezoid(photons, wl)
+    return trapezoid(photons * curve(wl), wl) / trapezoid(photons, wl)
 
 
 def blackbody_weighted_qe(
