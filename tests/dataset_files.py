@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import hashlib
+import math
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 
@@ -61,3 +63,17 @@ def generated_dataset(out: Path, scenario: dict) -> Path:
 
     assert generate_dataset(parse_scenario(scenario), out).complete
     return out
+
+
+def footprint_box_mask(shape: tuple[int, int], footprint: dict) -> np.ndarray:
+    """(H, W) bool: the pixels under a frame's integrated footprint box (its
+    ``target_footprint`` label), where a small target's light may lie off the pixel-centre
+    mask; all False when the frame's pixels were not integrated."""
+    box = np.zeros(shape, dtype=bool)
+    if footprint["integrated"]:
+        x0, y0, x1, y1 = footprint["projected_box_xyxy_px"]
+        box[
+            max(math.floor(y0 + 0.5), 0) : math.floor(y1 + 0.5) + 1,
+            max(math.floor(x0 + 0.5), 0) : math.floor(x1 + 0.5) + 1,
+        ] = True
+    return box

@@ -5,7 +5,6 @@ opened dataset gives its frames in order."""
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
@@ -17,6 +16,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import satsight
+from dataset_files import footprint_box_mask
 from satsight.config.scenario import RenderConfig
 from satsight.dataset.reader import open_dataset as open_reader
 from tolerances import ONE_MM, ONE_UM
@@ -214,14 +214,7 @@ def test_radiance_and_dn_are_the_lit_target(rendered) -> None:
         assert np.all(radiance >= 0)
         # No Earth, Moon or stars in this scenario: light off the mask only where a small
         # target's pixels were integrated over their area (its footprint label's box).
-        off = ~mask
-        footprint = frame.labels["target_footprint"]
-        if footprint["integrated"]:
-            x0, y0, x1, y1 = footprint["projected_box_xyxy_px"]
-            off[
-                max(math.floor(y0 + 0.5), 0) : math.floor(y1 + 0.5) + 1,
-                max(math.floor(x0 + 0.5), 0) : math.floor(x1 + 0.5) + 1,
-            ] = False
+        off = ~mask & ~footprint_box_mask(mask.shape, frame.labels["target_footprint"])
         assert np.all(radiance[off] == 0)
         assert radiance[mask].max() > 0
         bias_dn = np.median(frame.dn[~mask])

@@ -17,6 +17,7 @@ from matplotlib.colors import to_rgba
 from scipy.ndimage import binary_dilation, binary_erosion, maximum_filter
 
 from cli_runner import invoke_satsight, run_satsight
+from dataset_files import footprint_box_mask
 from figure_checks import figure_pixels, has_colour
 from qe_oracle import blackbody_qe, solar_qe
 from satsight.camera.pinhole import PinholeCamera
@@ -177,14 +178,7 @@ def test_frame_files(demo_dir: Path, labels, index: int) -> None:
     assert not background[on].any()
     # Light off the mask comes from a body behind, or from a small target's pixels whose
     # radiance was integrated over their area (the projected box of its footprint label).
-    integrated = np.zeros_like(on)
-    footprint = frame["target_footprint"]
-    if footprint["integrated"]:
-        bx0, by0, bx1, by1 = footprint["projected_box_xyxy_px"]
-        integrated[
-            max(math.floor(by0 + 0.5), 0) : math.floor(by1 + 0.5) + 1,
-            max(math.floor(bx0 + 0.5), 0) : math.floor(bx1 + 0.5) + 1,
-        ] = True
+    integrated = footprint_box_mask(on.shape, frame["target_footprint"])
     assert background[~on & lit & ~integrated].all()
     regions = frame["sensor"]["regions"]
     assert regions["target"]["pixel_count"] == frame["object_pixel_count"]
