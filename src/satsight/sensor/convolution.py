@@ -51,7 +51,8 @@ def fill_negative_lobes(image: np.ndarray, radius_px: int = NEGATIVE_LOBE_RADIUS
     P_i (1 - sum_{j: i in W(j)} d_j / Q_j). The total taken is sum_j d_j exactly (each d_j is
     shared out over its Q_j); a pixel asked for more than it holds stops at 0, and a dip
     with no positive value within reach (far, faint wings) is dropped, the only two ways
-    the sum can change. Rows are done in bands with a 2 r halo.
+    the sum can change. Rows are done in bands with a 2 r halo, on the columns within 2 r
+    of a dip.
     """
     r = int(radius_px)
     negative_rows = np.flatnonzero((image < 0).any(axis=1))
@@ -63,19 +64,23 @@ def fill_negative_lobes(image: np.ndarray, radius_px: int = NEGATIVE_LOBE_RADIUS
     for a in range(lo, hi, _LOBE_BAND_ROWS):
         b = min(a + _LOBE_BAND_ROWS, hi)
         a0, b0 = max(a - 2 * r, 0), min(b + 2 * r, h)
-        block = image[a0:b0].astype(np.float64)
+        negative_cols = np.flatnonzero((image[a0:b0] < 0).any(axis=0))
+        if negative_cols.size == 0:
+            continue
+        # Only the columns within 2 r of a dip: a dip takes from within r of it, and its
+        # share is summed over r around it (the rest of the band is left as it is).
+        c0 = max(int(negative_cols[0]) - 2 * r, 0)
+        c1 = min(int(negative_cols[-1]) + 2 * r + 1, image.shape[1])
+        block = image[a0:b0, c0:c1].astype(np.float64)
         positive = np.maximum(block, 0.0)
         deficit = np.maximum(-block, 0.0)
-        if not deficit.any():
-            updates.append((a, b, np.maximum(image[a:b], 0)))
-            continue
         share = _box_sum(positive, r)
         ratio = np.divide(deficit, share, out=np.zeros_like(share), where=share > 0)
         taken = _box_sum(ratio, r)
         kept = positive * np.maximum(1.0 - taken, 0.0)
-        updates.append((a, b, kept[a - a0 : b - a0]))
-    for a, b, rows in updates:
-        image[a:b] = rows
+        updates.append((a, b, c0, c1, kept[a - a0 : b - a0]))
+    for a, b, c0, c1, rows in updates:
+        image[a:b, c0:c1] = rows
     np.maximum(image, 0, out=image)  # rows outside the dips' reach: round-off below 0
 
 
