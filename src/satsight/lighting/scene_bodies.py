@@ -77,9 +77,13 @@ class AlbedoMap:
         fx = (x - x0f)[..., None]
         x0 = x0f.astype(int) % cols
         x1 = (x0 + 1) % cols
-        a = self.albedo_rgb.astype(np.float64)
-        top = a[y0, x0] * (1 - fx) + a[y0, x1] * fx
-        bottom = a[y0 + 1, x0] * (1 - fx) + a[y0 + 1, x1] * fx
+        a = self.albedo_rgb  # float32: the four corners are gathered, then widened exactly
+
+        def corner(rows_index, cols_index):
+            return a[rows_index, cols_index].astype(np.float64)
+
+        top = corner(y0, x0) * (1 - fx) + corner(y0, x1) * fx
+        bottom = corner(y0 + 1, x0) * (1 - fx) + corner(y0 + 1, x1) * fx
         return top * (1 - fy) + bottom * fy
 
 
