@@ -26,8 +26,12 @@ Smaller squares leave dips with only dips around them (the frame kernel's outer 
 alternate in sign): a lone bright pixel then keeps 0.50 / 0.22 / 0.08 % of its power too much
 for half-widths of 2 / 4 / 6 px (f/7). The running box sums cost the same for any size."""
 
-_LOBE_BAND_ROWS = 256
-"""Rows per band of ``fill_negative_lobes`` (bounds its float64 temporaries)."""
+_LOBE_TILE_PX = 64
+"""Side of the tiles ``fill_negative_lobes`` works on (those holding a dip or next to one)."""
+
+_ROUND_OFF_DIP = 1e-6
+"""Dips shallower than this fraction of a blurred image's peak are the FFT's round-off
+(float32: ~1e-7 of the values it sums): ``fill_negative_lobes`` clips them instead."""
 
 
 def _box_sum(a: np.ndarray, r: int) -> np.ndarray:
@@ -51,37 +55,49 @@ def fill_negative_lobes(image: np.ndarray, radius_px: int = NEGATIVE_LOBE_RADIUS
     P_i (1 - sum_{j: i in W(j)} d_j / Q_j). The total taken is sum_j d_j exactly (each d_j is
     shared out over its Q_j); a pixel asked for more than it holds stops at 0, and a dip
     with no positive value within reach (far, faint wings) is dropped, the only two ways
-    the sum can change. Rows are done in bands with a 2 r halo, on the columns within 2 r
-    of a dip.
+    the sum can change. Dips shallower than ``_ROUND_OFF_DIP`` of the image's peak are
+    the FFT's round-off and are clipped (at most that fraction of the peak per pixel).
+    The work is done on tiles of ``_LOBE_TILE_PX`` px that hold a dip or border one (each
+    with a 2 r halo), so it follows the dips (a target's edges), not the target's area.
     """
     r = int(radius_px)
-    negative_rows = np.flatnonzero((image < 0).any(axis=1))
-    if negative_rows.size == 0:
+    h, w = image.shape
+    peak = float(image.max()) if image.size else 0.0
+    dips = image < -_ROUND_OFF_DIP * peak if peak > 0.0 else np.zeros(image.shape, bool)
+    if not dips.any():
+        np.maximum(image, 0, out=image)
         return
-    h = image.shape[0]
-    lo, hi = max(int(negative_rows[0]) - r, 0), min(int(negative_rows[-1]) + r + 1, h)
+    t = _LOBE_TILE_PX
+    ny, nx = -(-h // t), -(-w // t)
+    padded = np.zeros((ny * t, nx * t), dtype=bool)
+    padded[:h, :w] = dips
+    tiles = padded.reshape(ny, t, nx, t).any(axis=(1, 3))
+    # A pixel gives to the dips within r of it (r <= t: in its tile or the next).
+    reach = max(1, -(-r // t))
+    grown = np.zeros_like(tiles)
+    for dy in range(-reach, reach + 1):
+        for dx in range(-reach, reach + 1):
+            grown[max(dy, 0) : ny + min(dy, 0), max(dx, 0) : nx + min(dx, 0)] |= tiles[
+                max(-dy, 0) : ny + min(-dy, 0), max(-dx, 0) : nx + min(-dx, 0)
+            ]
+    threshold = -_ROUND_OFF_DIP * peak
     updates = []
-    for a in range(lo, hi, _LOBE_BAND_ROWS):
-        b = min(a + _LOBE_BAND_ROWS, hi)
-        a0, b0 = max(a - 2 * r, 0), min(b + 2 * r, h)
-        negative_cols = np.flatnonzero((image[a0:b0] < 0).any(axis=0))
-        if negative_cols.size == 0:
-            continue
-        # Only the columns within 2 r of a dip: a dip takes from within r of it, and its
-        # share is summed over r around it (the rest of the band is left as it is).
-        c0 = max(int(negative_cols[0]) - 2 * r, 0)
-        c1 = min(int(negative_cols[-1]) + 2 * r + 1, image.shape[1])
+    for i, j in zip(*np.nonzero(grown), strict=True):
+        y0, y1 = i * t, min((i + 1) * t, h)
+        x0, x1 = j * t, min((j + 1) * t, w)
+        a0, b0 = max(y0 - 2 * r, 0), min(y1 + 2 * r, h)
+        c0, c1 = max(x0 - 2 * r, 0), min(x1 + 2 * r, w)
         block = image[a0:b0, c0:c1].astype(np.float64)
         positive = np.maximum(block, 0.0)
-        deficit = np.maximum(-block, 0.0)
+        deficit = np.where(block < threshold, -block, 0.0)
         share = _box_sum(positive, r)
         ratio = np.divide(deficit, share, out=np.zeros_like(share), where=share > 0)
         taken = _box_sum(ratio, r)
         kept = positive * np.maximum(1.0 - taken, 0.0)
-        updates.append((a, b, c0, c1, kept[a - a0 : b - a0]))
-    for a, b, c0, c1, rows in updates:
-        image[a:b, c0:c1] = rows
-    np.maximum(image, 0, out=image)  # rows outside the dips' reach: round-off below 0
+        updates.append((y0, y1, x0, x1, kept[y0 - a0 : y1 - a0, x0 - c0 : x1 - c0]))
+    for y0, y1, x0, x1, tile in updates:
+        image[y0:y1, x0:x1] = tile
+    np.maximum(image, 0, out=image)  # round-off dips, and tiles out of every dip's reach
 
 
 def _window(lo: int, hi: int, radius: int, size: int, margin: int, s: int) -> tuple:
