@@ -26,8 +26,8 @@ Smaller squares leave dips with only dips around them (the frame kernel's outer 
 alternate in sign): a lone bright pixel then keeps 0.50 / 0.22 / 0.08 % of its power too much
 for half-widths of 2 / 4 / 6 px (f/7). The running box sums cost the same for any size."""
 
-_LOBE_TILE_PX = 64
-"""Side of the tiles ``fill_negative_lobes`` works on (those holding a dip or next to one)."""
+_LOBE_BAND_ROWS = 256
+"""Rows per band of ``fill_negative_lobes`` (bounds its float64 temporaries)."""
 
 _ROUND_OFF_DIP = 1e-6
 """Dips shallower than this fraction of a blurred image's peak are the FFT's round-off
@@ -44,6 +44,16 @@ def _box_sum(a: np.ndarray, r: int) -> np.ndarray:
     return c[:, k:] - c[:, : c.shape[1] - k]
 
 
+def _runs(flags: np.ndarray, grow: int) -> list[tuple[int, int]]:
+    """[start, end) of the runs of True in the 1-D ``flags`` grown by ``grow`` each way."""
+    n = flags.size
+    counts = np.cumsum(np.concatenate([[0], flags.astype(np.int64)]))
+    index = np.arange(n)
+    grown = counts[np.minimum(index + grow + 1, n)] - counts[np.maximum(index - grow, 0)] > 0
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], grown, [False]]).astype(np.int8)))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
 def fill_negative_lobes(image: np.ndarray, radius_px: int = NEGATIVE_LOBE_RADIUS_PX) -> None:
     """Make a blurred image non-negative in place, keeping its sum where it can.
 
@@ -57,47 +67,36 @@ def fill_negative_lobes(image: np.ndarray, radius_px: int = NEGATIVE_LOBE_RADIUS
     with no positive value within reach (far, faint wings) is dropped, the only two ways
     the sum can change. Dips shallower than ``_ROUND_OFF_DIP`` of the image's peak are
     the FFT's round-off and are clipped (at most that fraction of the peak per pixel).
-    The work is done on tiles of ``_LOBE_TILE_PX`` px that hold a dip or border one (each
-    with a 2 r halo), so it follows the dips (a target's edges), not the target's area.
+    Rows are done in bands with a 2 r halo, and in each band only the runs of columns
+    within 2 r of a dip, so the work follows the dips (a target's edges, or a whole
+    textured Earth), not the frame.
     """
     r = int(radius_px)
-    h, w = image.shape
+    h = image.shape[0]
     peak = float(image.max()) if image.size else 0.0
-    dips = image < -_ROUND_OFF_DIP * peak if peak > 0.0 else np.zeros(image.shape, bool)
-    if not dips.any():
-        np.maximum(image, 0, out=image)
-        return
-    t = _LOBE_TILE_PX
-    ny, nx = -(-h // t), -(-w // t)
-    padded = np.zeros((ny * t, nx * t), dtype=bool)
-    padded[:h, :w] = dips
-    tiles = padded.reshape(ny, t, nx, t).any(axis=(1, 3))
-    # A pixel gives to the dips within r of it (r <= t: in its tile or the next).
-    reach = max(1, -(-r // t))
-    grown = np.zeros_like(tiles)
-    for dy in range(-reach, reach + 1):
-        for dx in range(-reach, reach + 1):
-            grown[max(dy, 0) : ny + min(dy, 0), max(dx, 0) : nx + min(dx, 0)] |= tiles[
-                max(-dy, 0) : ny + min(-dy, 0), max(-dx, 0) : nx + min(-dx, 0)
-            ]
     threshold = -_ROUND_OFF_DIP * peak
+    dips = image < threshold if peak > 0.0 else np.zeros(image.shape, dtype=bool)
+    dip_rows = np.flatnonzero(dips.any(axis=1))
     updates = []
-    for i, j in zip(*np.nonzero(grown), strict=True):
-        y0, y1 = i * t, min((i + 1) * t, h)
-        x0, x1 = j * t, min((j + 1) * t, w)
-        a0, b0 = max(y0 - 2 * r, 0), min(y1 + 2 * r, h)
-        c0, c1 = max(x0 - 2 * r, 0), min(x1 + 2 * r, w)
-        block = image[a0:b0, c0:c1].astype(np.float64)
-        positive = np.maximum(block, 0.0)
-        deficit = np.where(block < threshold, -block, 0.0)
-        share = _box_sum(positive, r)
-        ratio = np.divide(deficit, share, out=np.zeros_like(share), where=share > 0)
-        taken = _box_sum(ratio, r)
-        kept = positive * np.maximum(1.0 - taken, 0.0)
-        updates.append((y0, y1, x0, x1, kept[y0 - a0 : y1 - a0, x0 - c0 : x1 - c0]))
-    for y0, y1, x0, x1, tile in updates:
-        image[y0:y1, x0:x1] = tile
-    np.maximum(image, 0, out=image)  # round-off dips, and tiles out of every dip's reach
+    if dip_rows.size:
+        lo, hi = max(int(dip_rows[0]) - r, 0), min(int(dip_rows[-1]) + r + 1, h)
+        for a in range(lo, hi, _LOBE_BAND_ROWS):
+            b = min(a + _LOBE_BAND_ROWS, hi)
+            a0, b0 = max(a - 2 * r, 0), min(b + 2 * r, h)
+            # The dips that can reach rows [a, b), and the columns that give to them.
+            reaching = dips[max(a - r, 0) : min(b + r, h)].any(axis=0)
+            for c0, c1 in _runs(reaching, 2 * r):
+                block = image[a0:b0, c0:c1].astype(np.float64)
+                positive = np.maximum(block, 0.0)
+                deficit = np.where(block < threshold, -block, 0.0)
+                share = _box_sum(positive, r)
+                ratio = np.divide(deficit, share, out=np.zeros_like(share), where=share > 0)
+                taken = _box_sum(ratio, r)
+                kept = positive * np.maximum(1.0 - taken, 0.0)
+                updates.append((a, b, c0, c1, kept[a - a0 : b - a0]))
+    for a, b, c0, c1, rows in updates:
+        image[a:b, c0:c1] = rows
+    np.maximum(image, 0, out=image)  # round-off dips, and rows out of every dip's reach
 
 
 def _window(lo: int, hi: int, radius: int, size: int, margin: int, s: int) -> tuple:
