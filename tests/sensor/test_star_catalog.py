@@ -414,7 +414,6 @@ def test_v_matches_hipparcos_for_bright_stars():
     single stars with a Gaia colour in range, interpolated: a relation of the Hipparcos
     photometry itself, independent of the catalogue's quadratic fallback and of which source
     each star took. With V - I > 2 (red variables) V - Hp is not a function of B - V."""
-    from scipy.spatial import cKDTree
 
     catalog = sc._full_catalog()
     hip = _hipparcos_table()
@@ -434,17 +433,7 @@ def test_v_matches_hipparcos_for_bright_stars():
             medians.append(np.median(dv[ok][sel]))
     v_oracle = hip["hp_mag"] + np.interp(np.nan_to_num(hip["b_minus_v"]), centres, medians)
     use = (v_oracle <= 9.0) & np.isfinite(hip["b_minus_v"]) & (hip["v_minus_i"] <= 2.0)
-    u = sa.propagate_directions(
-        hip["ra_rad"][use],
-        hip["dec_rad"][use],
-        hip["pm_ra_cosdec_mas_yr"][use] * MAS_RAD,
-        hip["pm_dec_mas_yr"][use] * MAS_RAD,
-        24.75,
-    )
-    tree = cKDTree(sa.unit_vectors(catalog.ra_rad, catalog.dec_rad))
-    near = tree.query_ball_point(u, 10 * ARCSEC_RAD)
-    flux = 10 ** (-0.4 * catalog.v_mag)
-    v_blend = np.array([-2.5 * np.log10(flux[n].sum()) if n else np.inf for n in near])
+    v_blend = _blended_v_near(catalog, hip, use)
     off = np.abs(v_blend - v_oracle[use]) > 0.3
     assert use.sum() > 70_000
     assert off.mean() <= 1e-3, (off.sum(), use.sum(), hip["hip"][use][off][:20])
@@ -455,22 +444,11 @@ def test_no_star_brighter_than_the_limit_is_dropped():
     those colours, so V < 8.6) has catalogue stars within 10 arcsec whose summed light is
     brighter than V 9 (how close their V is: the test above). Summed: a double that
     Hipparcos saw as one V 8.5 star may be two V 9.2 Gaia stars, each rightly beyond V 9."""
-    from scipy.spatial import cKDTree
 
     catalog = sc._full_catalog()
     hip = _hipparcos_table()
     use = (hip["hp_mag"] < 8.5) & (hip["v_minus_i"] <= 2.0)
-    u = sa.propagate_directions(
-        hip["ra_rad"][use],
-        hip["dec_rad"][use],
-        hip["pm_ra_cosdec_mas_yr"][use] * MAS_RAD,
-        hip["pm_dec_mas_yr"][use] * MAS_RAD,
-        24.75,
-    )
-    tree = cKDTree(sa.unit_vectors(catalog.ra_rad, catalog.dec_rad))
-    near = tree.query_ball_point(u, 10 * ARCSEC_RAD)
-    flux = 10 ** (-0.4 * catalog.v_mag)
-    v_blend = np.array([-2.5 * np.log10(flux[n].sum()) if n else np.inf for n in near])
+    v_blend = _blended_v_near(catalog, hip, use)
     found = v_blend <= 9.0
     # HIP 104833 (Hp 8.21, a variable: Hipparcos scatter 0.17 mag) is neither paired nor
     # added: a fainter Gaia source within 5 arcsec stands for it (construction step 2).
@@ -495,3 +473,21 @@ def test_choose_v_rules():
     v, source = sv.choose_v(v_gaia, bprp, has_colour, v_hip, u, cKDTree(u), np.arange(ra.size))
     assert list(source) == [0, 3, 3, 0, 0, 0, 1]
     assert np.allclose(v, [8.0, 8.5, 8.5, 8.0, 8.75, 8.75, 9.0])
+
+
+def _blended_v_near(catalog, hip: dict, use: np.ndarray) -> np.ndarray:
+    """V of the summed light of the catalogue stars within 10 arcsec of each selected
+    Hipparcos star (moved to J2016.0 with its proper motion); inf where there are none."""
+    from scipy.spatial import cKDTree
+
+    u = sa.propagate_directions(
+        hip["ra_rad"][use],
+        hip["dec_rad"][use],
+        hip["pm_ra_cosdec_mas_yr"][use] * MAS_RAD,
+        hip["pm_dec_mas_yr"][use] * MAS_RAD,
+        24.75,
+    )
+    tree = cKDTree(sa.unit_vectors(catalog.ra_rad, catalog.dec_rad))
+    near = tree.query_ball_point(u, 10 * ARCSEC_RAD)
+    flux = 10 ** (-0.4 * catalog.v_mag)
+    return np.array([-2.5 * np.log10(flux[n].sum()) if n else np.inf for n in near])
