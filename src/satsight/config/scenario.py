@@ -166,6 +166,9 @@ class RenderConfig(_Strict):
     indirect_min_roughness: float = Field(default=0.35, ge=0.0, le=1.0)
     integrate_footprint: bool = True
     variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
+    # Motion during the exposure (``satsight.frame_motion``): "auto" renders time samples
+    # over the exposure when the target's box corners move more than 0.1 px across it.
+    motion_blur: Literal["auto"] | bool = "auto"
 
     def settings(self) -> RenderSettings:
         return RenderSettings(
