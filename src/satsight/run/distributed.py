@@ -246,9 +246,19 @@ def dask_client(
             check_workers_write(client, out_dir)
         yield client
     finally:
+        if cluster is not None:
+            # Workers that heartbeat while the cluster shuts them down log the closed
+            # connection as an error with its traceback; the run has ended, so say nothing.
+            with suppress(OSError, TimeoutError):
+                client.run(_quiet_distributed_logs, on_error="ignore")
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _quiet_distributed_logs() -> None:
+    """Only critical messages from Dask in this process (a local worker being shut down)."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
 
 
 def run_distributed(
