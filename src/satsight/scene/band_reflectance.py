@@ -32,7 +32,7 @@ mapping neglects that (a few per cent of F0).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -50,6 +50,7 @@ from satsight.scene.material_library import (
     LIBRARY_PREFIX,
     LibraryEntry,
     entry_spectrum,
+    list_materials,
     load_entry,
 )
 from satsight.scene.materials import FIRST_MATERIALS, Material
@@ -238,14 +239,52 @@ BUILTIN_LIBRARY_MATCH: dict[str, str] = {
 }
 
 
+class BandMaterials(Mapping[str, Material]):
+    """The materials of one sensor band, by name: every built-in name (with the library's
+    material where ``BUILTIN_LIBRARY_MATCH`` has one, named as the built-in, so meshes keep
+    their part materials; the built-in values elsewhere) and every library material as
+    ``library:NAME``. Each library material is integrated over the band when first looked
+    up (a few ms to 0.8 s each), so holding them all costs nothing until used."""
+
+    def __init__(
+        self,
+        band_nm: tuple[float, float] = DEFAULT_BAND_NM,
+        qe: str | QuantumEfficiency = DEFAULT_QE,
+    ) -> None:
+        self.band_nm = check_band_nm(band_nm)
+        self.qe = qe
+        self._names = list(FIRST_MATERIALS) + [LIBRARY_PREFIX + name for name in list_materials()]
+        self._known = set(self._names)
+        self._made: dict[str, Material] = {}
+
+    def __getitem__(self, key: str) -> Material:
+        if key not in self._known:
+            raise KeyError(key)
+        if key not in self._made:
+            if key in BUILTIN_LIBRARY_MATCH:
+                entry = material_from_entry(BUILTIN_LIBRARY_MATCH[key], self.band_nm, self.qe)
+                self._made[key] = replace(entry, name=key)
+            elif key.startswith(LIBRARY_PREFIX):
+                self._made.update(library_materials([key], self.band_nm, self.qe))
+            else:
+                self._made[key] = FIRST_MATERIALS[key]
+        return self._made[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._known
+
+
 def builtins_from_library(
     band_nm: tuple[float, float] = DEFAULT_BAND_NM,
     qe: str | QuantumEfficiency = DEFAULT_QE,
-) -> dict[str, Material]:
-    """The built-in material names with the library's materials for ``band_nm`` where
-    ``BUILTIN_LIBRARY_MATCH`` has one (named as the built-in, so meshes keep their part
-    materials), the built-in values elsewhere."""
-    out = dict(FIRST_MATERIALS)
-    for builtin, name in BUILTIN_LIBRARY_MATCH.items():
-        out[builtin] = replace(material_from_entry(name, band_nm, qe), name=builtin)
-    return out
+) -> BandMaterials:
+    """The materials of ``band_nm`` (``BandMaterials``): the built-in names with the
+    library's materials where ``BUILTIN_LIBRARY_MATCH`` has one, the built-in values
+    elsewhere, and every library material as ``library:NAME``."""
+    return BandMaterials(band_nm, qe)
