@@ -146,6 +146,8 @@ class SensorChain:
     the reflected light. exposure: the exposure rule. camera_seed: fixes the detector's
     PRNU and DSNU maps. supersampling, samples_per_pixel: the renderer's sub-pixel sampling
     (``RenderSettings``), for which the blur kernel ``psf`` is designed (``frame_kernel``).
+    exposure_factor: a factor on the time the exposure rule gives (a randomised sensor's;
+    the result stays within the rule's bounds).
 
     Derived: quantum_efficiency, the eta of sunlit light over the band, and
     quantum_efficiency_source, where it comes from (``DetectorParameters.
@@ -163,6 +165,7 @@ class SensorChain:
     camera_seed: int = 0
     supersampling: int = 1
     samples_per_pixel: int = 1
+    exposure_factor: float = 1.0
     psf: np.ndarray = field(init=False, repr=False)
     channel_weights: np.ndarray = field(init=False, repr=False)
     channel_photon_weights: np.ndarray = field(init=False, repr=False)
@@ -174,6 +177,8 @@ class SensorChain:
 
     def __post_init__(self) -> None:
         lo, hi = check_band_nm(self.band_nm)
+        if not (math.isfinite(self.exposure_factor) and self.exposure_factor > 0):
+            raise SatsightError(f"exposure_factor must be > 0, got {self.exposure_factor!r}")
         if abs(self.optics.focal_length_m - self.camera.focal_length_m) > 1e-9:
             raise SatsightError(
                 f"the optics' focal length ({self.optics.focal_length_m:g} m) differs from the "
@@ -343,13 +348,13 @@ class SensorChain:
         """
         rule = self.exposure
         if rule.mode == "fixed":
-            return rule.time_s
+            return rule.time_s * self.exposure_factor
         lit = irradiance_w_m2[object_mask]
         if lit.size > EXPOSURE_SAMPLE_PIXELS:
             lit = lit[:: -(-lit.size // EXPOSURE_SAMPLE_PIXELS)]
         level = _percentile_of(lit[lit > 0], rule.percentile)
         if level is None:
-            return rule.time_s
+            return rule.time_s * self.exposure_factor
         t = exposure_for_fill(
             level,
             self.detector,
@@ -358,7 +363,7 @@ class SensorChain:
             self.effective_wavelength_m,
             quantum_efficiency=self.quantum_efficiency,
         )
-        return float(np.clip(t, rule.min_time_s, rule.max_time_s))
+        return float(np.clip(t * self.exposure_factor, rule.min_time_s, rule.max_time_s))
 
     def region_fill(
         self, irradiance_w_m2: np.ndarray, exposure_time_s: float, region: np.ndarray

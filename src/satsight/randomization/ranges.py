@@ -1,0 +1,159 @@
+"""The ranges of the randomised groups (frozen dataclasses, SI units unless the name says).
+
+Each group is off (None in ``RandomizationRanges``) or a set of ranges; an interval is
+(low, high) with low <= high, drawn uniformly unless its field says log-uniform (scales
+spanning a factor of several, where each octave should be as likely). The defaults are
+those ``randomize: {group: true}`` gives; docs/design.md ("Domain randomisation") gives
+the reasons for each.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from satsight.errors import SatsightError
+
+Interval = tuple[float, float]
+
+
+def check_interval(name: str, interval: Interval, low: float, high: float) -> Interval:
+    """(a, b) as floats, with low <= a <= b <= high; else a SatsightError naming ``name``."""
+    try:
+        a, b = (float(v) for v in interval)
+    except (TypeError, ValueError):
+        raise SatsightError(
+            f"{name} must be a pair [low, high] of numbers, got {interval!r}"
+        ) from None
+    if not (math.isfinite(a) and math.isfinite(b)) or a > b:
+        raise SatsightError(f"{name} must be [low, high] with low <= high, got [{a:g}, {b:g}]")
+    if a < low or b > high:
+        raise SatsightError(f"{name} must lie within [{low:g}, {high:g}], got [{a:g}, {b:g}]")
+    return a, b
+
+
+@dataclass(frozen=True)
+class MaterialRanges:
+    """Per material of the target (every part made of it changes alike).
+
+    roughness_scale: factor on the GGX roughness (result clipped to [0.02, 1]).
+    base_color_scale: factor on the base colour, the same for the three channels (result
+    clipped to 1 per channel, so no material reflects more than it receives).
+    ior_shift: added to the index of refraction (result at least 1.05).
+    """
+
+    roughness_scale: Interval = (0.7, 1.4)
+    base_color_scale: Interval = (0.8, 1.2)
+    ior_shift: Interval = (-0.1, 0.1)
+
+    def __post_init__(self) -> None:
+        check_interval("randomize.materials.roughness_scale", self.roughness_scale, 0.0, 10.0)
+        check_interval("randomize.materials.base_color_scale", self.base_color_scale, 0.0, 10.0)
+        check_interval("randomize.materials.ior_shift", self.ior_shift, -1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class SunRanges:
+    """irradiance_scale: factor on the Sun's in-band irradiance (the solar constant varies
+    by ~0.1 % and the Earth-Sun distance by +-1.7 %; the default +-5 % also stands for
+    calibration error). direction_jitter_rad: the Sun's direction turns by an angle up to
+    this (uniform over the spherical cap); only on hand-placed views unless
+    ``jitter_orbit_frames`` (an orbit plan's Sun is where the ephemeris puts it)."""
+
+    irradiance_scale: Interval = (0.95, 1.05)
+    direction_jitter_rad: float = math.radians(5.0)
+    jitter_orbit_frames: bool = False
+
+    def __post_init__(self) -> None:
+        check_interval("randomize.sun.irradiance_scale", self.irradiance_scale, 0.0, 100.0)
+        if not 0.0 <= self.direction_jitter_rad <= math.pi:
+            raise SatsightError(
+                "randomize.sun.direction_jitter_deg must be within [0, 180], got "
+                f"{math.degrees(self.direction_jitter_rad):g}"
+            )
+
+
+@dataclass(frozen=True)
+class EarthRanges:
+    """albedo_scale: factor on the Earth's albedo (map or uniform; clipped to 1).
+    cloud_fraction: the cloud cover of the albedo map. new_cloud_seed: draw the clouds'
+    seed too (another cloud pattern each frame). surface_map_probability: the chance that
+    the Earth is drawn with its albedo map (else uniform at its mean albedo)."""
+
+    albedo_scale: Interval = (0.8, 1.2)
+    cloud_fraction: Interval = (0.3, 0.9)
+    new_cloud_seed: bool = True
+    surface_map_probability: float = 0.8
+
+    def __post_init__(self) -> None:
+        check_interval("randomize.earth.albedo_scale", self.albedo_scale, 0.0, 10.0)
+        check_interval("randomize.earth.cloud_fraction", self.cloud_fraction, 0.0, 1.0)
+        if not 0.0 <= self.surface_map_probability <= 1.0:
+            raise SatsightError(
+                "randomize.earth.surface_map_probability must be within [0, 1], got "
+                f"{self.surface_map_probability:g}"
+            )
+
+
+@dataclass(frozen=True)
+class SensorRanges:
+    """exposure_factor: factor on the exposure time the rule gives (log-uniform).
+    read_noise_scale, gain_scale, prnu_scale: factors on the detector's read noise,
+    conversion gain (e-/DN) and PRNU (log-uniform, uniform, log-uniform; PRNU at most 20 %).
+    defocus_blur_diameter_m, jitter_rms_rad: the optics' defocus disc and line-of-sight
+    jitter, drawn uniformly (they replace the camera's values)."""
+
+    exposure_factor: Interval = (0.5, 2.0)
+    read_noise_scale: Interval = (0.5, 2.0)
+    gain_scale: Interval = (0.9, 1.1)
+    prnu_scale: Interval = (0.5, 2.0)
+    defocus_blur_diameter_m: Interval = (0.0, 30e-6)
+    jitter_rms_rad: Interval = (0.0, 2e-6)
+
+    def __post_init__(self) -> None:
+        for name, low, high in (
+            ("exposure_factor", 1e-3, 1e3),
+            ("read_noise_scale", 0.0, 100.0),
+            ("gain_scale", 1e-3, 1e3),
+            ("prnu_scale", 0.0, 100.0),
+            ("defocus_blur_diameter_m", 0.0, 1e-3),
+            ("jitter_rms_rad", 0.0, 1e-3),
+        ):
+            check_interval(f"randomize.sensor.{name}", getattr(self, name), low, high)
+        for name in ("exposure_factor", "read_noise_scale", "prnu_scale"):
+            if getattr(self, name)[0] <= 0.0:
+                raise SatsightError(f"randomize.sensor.{name} is log-uniform: its low must be > 0")
+
+
+@dataclass(frozen=True)
+class PoseRanges:
+    """roll_rad: the camera turns about its boresight by this (uniform; labels follow).
+    attitude_jitter_rad: the target turns about its box centre by an angle up to this, about
+    an axis uniform on the sphere (uniform over the cap of rotations' axes times angle)."""
+
+    roll_rad: Interval = (-math.pi, math.pi)
+    attitude_jitter_rad: float = math.radians(2.0)
+
+    def __post_init__(self) -> None:
+        check_interval("randomize.pose.roll_deg", self.roll_rad, -math.pi, math.pi)
+        if not 0.0 <= self.attitude_jitter_rad <= math.pi:
+            raise SatsightError(
+                "randomize.pose.attitude_jitter_deg must be within [0, 180], got "
+                f"{math.degrees(self.attitude_jitter_rad):g}"
+            )
+
+
+@dataclass(frozen=True)
+class RandomizationRanges:
+    """The groups that vary (None: the group is fixed for the whole dataset)."""
+
+    materials: MaterialRanges | None = None
+    sun: SunRanges | None = None
+    earth: EarthRanges | None = None
+    sensor: SensorRanges | None = None
+    pose: PoseRanges | None = None
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The names of the groups that vary, in a fixed order."""
+        return tuple(f.name for f in fields(self) if getattr(self, f.name) is not None)

@@ -1,0 +1,113 @@
+"""Each frame's randomised draws: seeded per frame and group, independent of the other
+groups, and distributed as documented (means within sample-count tolerances)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from satsight.randomization.draws import (
+    cap_angle_rad,
+    draw_frame,
+    draw_materials,
+    draw_pose,
+    draw_sensor,
+    draw_sun,
+    group_rng,
+    unit_vector,
+)
+from satsight.randomization.ranges import (
+    EarthRanges,
+    MaterialRanges,
+    PoseRanges,
+    RandomizationRanges,
+    SensorRanges,
+    SunRanges,
+)
+
+ALL = RandomizationRanges(
+    MaterialRanges(), SunRanges(), EarthRanges(), SensorRanges(), PoseRanges()
+)
+N_FRAMES = 4000
+#: Bound on a sample mean's deviation, in standard errors (a 4-sigma miss is 6e-5 likely).
+Z = 4.0
+
+
+def test_the_same_frame_draws_the_same_values_and_frames_differ() -> None:
+    a = draw_frame(ALL, 7, 12, ["gold", "cfrp"], hand_placed=True)
+    assert a == draw_frame(ALL, 7, 12, ["cfrp", "gold"], hand_placed=True)
+    assert a.sensor != draw_frame(ALL, 7, 13, ["gold", "cfrp"], True).sensor
+    assert a.sensor != draw_frame(ALL, 8, 12, ["gold", "cfrp"], True).sensor
+
+
+def test_a_group_does_not_depend_on_the_others_or_on_the_other_materials() -> None:
+    only_sensor = RandomizationRanges(sensor=SensorRanges())
+    assert draw_frame(only_sensor, 3, 5, [], True).sensor == draw_frame(ALL, 3, 5, [], True).sensor
+    assert draw_frame(only_sensor, 3, 5, [], True).pose is None
+    one = draw_materials(MaterialRanges(), 3, 5, ["gold"])
+    two = draw_materials(MaterialRanges(), 3, 5, ["gold", "aluminium"])
+    assert one["gold"] == two["gold"]
+
+
+def test_streams_are_not_the_detector_noise_stream() -> None:
+    noise = np.random.default_rng(np.random.SeedSequence([4, 9, 1])).random(4)
+    for group in ("materials", "sun", "earth", "sensor", "pose"):
+        assert not np.array_equal(group_rng(4, 9, group).random(4), noise)
+
+
+def test_uniform_and_log_uniform_draws_have_the_expected_means() -> None:
+    ranges = SensorRanges(gain_scale=(0.9, 1.1), exposure_factor=(0.25, 4.0))
+    draws = [draw_sensor(ranges, 1, i) for i in range(N_FRAMES)]
+    gain = np.array([d.gain_scale for d in draws])
+    sem = 0.2 / math.sqrt(12 * N_FRAMES)
+    assert abs(gain.mean() - 1.0) < Z * sem
+    assert gain.min() >= 0.9 and gain.max() <= 1.1
+    # Log-uniform: log of the factor uniform over [log 0.25, log 4].
+    log_factor = np.log([d.exposure_factor for d in draws])
+    width = math.log(16.0)
+    assert abs(log_factor.mean()) < Z * width / math.sqrt(12 * N_FRAMES)
+    assert log_factor.std() == pytest.approx(width / math.sqrt(12), rel=0.05)
+
+
+def test_cap_angles_are_uniform_over_the_caps_area() -> None:
+    half_angle = math.radians(30.0)
+    u = np.random.default_rng(0).random(N_FRAMES)
+    theta = np.array([cap_angle_rad(x, half_angle) for x in u])
+    assert theta.max() <= half_angle
+    # Area up to theta is proportional to 1 - cos(theta): half the cap lies within the
+    # angle whose 1 - cos is half of 1 - cos(half_angle).
+    median = math.acos(1.0 - 0.5 * (1.0 - math.cos(half_angle)))
+    inside = np.mean(theta < median)
+    assert abs(inside - 0.5) < Z * 0.5 / math.sqrt(N_FRAMES)
+
+
+def test_unit_vectors_are_uniform_on_the_sphere() -> None:
+    u = np.random.default_rng(1).random((N_FRAMES, 2))
+    v = np.array([unit_vector(a, b) for a, b in u])
+    np.testing.assert_allclose(np.linalg.norm(v, axis=1), 1.0, rtol=0, atol=1e-12)
+    # Each component of a uniform direction has mean 0 and variance 1/3.
+    assert np.all(np.abs(v.mean(axis=0)) < Z * math.sqrt(1 / 3 / N_FRAMES))
+
+
+def test_sun_jitter_only_on_hand_placed_views_unless_asked() -> None:
+    ranges = SunRanges()
+    assert draw_sun(ranges, 0, 3, hand_placed=False).direction_jitter_rad == 0.0
+    assert draw_sun(ranges, 0, 3, hand_placed=True).direction_jitter_rad > 0.0
+    orbit_too = SunRanges(jitter_orbit_frames=True)
+    assert draw_sun(orbit_too, 0, 3, hand_placed=False).direction_jitter_rad > 0.0
+    # The irradiance factor is the same either way (one stream, same count of numbers).
+    assert (
+        draw_sun(ranges, 0, 3, False).irradiance_scale
+        == draw_sun(ranges, 0, 3, True).irradiance_scale
+    )
+
+
+def test_pose_draws_stay_in_their_ranges() -> None:
+    ranges = PoseRanges(roll_rad=(-0.5, 0.25), attitude_jitter_rad=0.1)
+    for i in range(200):
+        d = draw_pose(ranges, 2, i)
+        assert -0.5 <= d.roll_rad <= 0.25
+        assert 0.0 <= d.attitude_jitter_rad <= 0.1
+        assert np.linalg.norm(d.jitter_axis_body) == pytest.approx(1.0, abs=1e-12)
