@@ -34,7 +34,7 @@ def test_true_gives_the_default_ranges_and_a_mapping_replaces_only_its_keys() ->
             {"sensor": {"gain_scale": [2, 1]}},
             r"sensor\.gain_scale must be \[low, high\]",
         ),
-        ({"earth": {"cloud_fraction": [0.2, 1.5]}}, r"cloud_fraction must lie within \[0, 1\]"),
+        ({"earth": {"cloud_patterns": 0}}, r"cloud_patterns must be a whole number within"),
         ({"sensor": {"exposure_factor": [0, 2]}}, r"must lie within|log-uniform"),
         ({"sun": {"direction_jitter_deg": 200}}, r"direction_jitter_deg must be within \[0, 180\]"),
         ({"pose": {"spin": True}}, r"spin"),

@@ -10,6 +10,7 @@ import pytest
 
 from satsight.randomization.draws import (
     cap_angle_rad,
+    draw_earth,
     draw_frame,
     draw_materials,
     draw_pose,
@@ -111,3 +112,15 @@ def test_pose_draws_stay_in_their_ranges() -> None:
         assert -0.5 <= d.roll_rad <= 0.25
         assert 0.0 <= d.attitude_jitter_rad <= 0.1
         assert np.linalg.norm(d.jitter_axis_body) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_earth_draws_pick_every_cloud_pattern_and_the_map_at_its_rate() -> None:
+    ranges = EarthRanges(surface_map_probability=0.7, cloud_patterns=4)
+    draws = [draw_earth(ranges, 5, i) for i in range(N_FRAMES)]
+    counts = np.bincount([d.cloud_pattern for d in draws], minlength=4)
+    assert counts.size == 4
+    # Each pattern's share: binomial with p = 1/4.
+    assert np.all(np.abs(counts / N_FRAMES - 0.25) < Z * math.sqrt(0.25 * 0.75 / N_FRAMES))
+    mapped = np.mean([d.surface == "map" for d in draws])
+    assert abs(mapped - 0.7) < Z * math.sqrt(0.7 * 0.3 / N_FRAMES)
+    assert all(0.8 <= d.albedo_scale <= 1.2 for d in draws)

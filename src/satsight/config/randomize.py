@@ -65,21 +65,16 @@ class SunRandomizeConfig(_Strict):
 
 
 class EarthRandomizeConfig(_Strict):
-    """Factor on the Earth's albedo, its cloud cover and cloud pattern, and the chance it
-    is drawn with its albedo map (else uniform). Applies where the scenario has ``earth``."""
+    """Factor on a uniform Earth's albedo, the chance the Earth is drawn with its albedo map
+    (else uniform), and how many cloud patterns the map's clouds are drawn from (each new
+    one costs ~20 s once). Applies where the scenario has ``earth``."""
 
     albedo_scale: Pair = EarthRanges().albedo_scale
-    cloud_fraction: Pair = EarthRanges().cloud_fraction
-    new_cloud_seed: bool = True
     surface_map_probability: float = EarthRanges().surface_map_probability
+    cloud_patterns: int = EarthRanges().cloud_patterns
 
     def build(self) -> EarthRanges:
-        return EarthRanges(
-            self.albedo_scale,
-            self.cloud_fraction,
-            self.new_cloud_seed,
-            self.surface_map_probability,
-        )
+        return EarthRanges(self.albedo_scale, self.surface_map_probability, self.cloud_patterns)
 
 
 class SensorRandomizeConfig(_Strict):

@@ -83,10 +83,12 @@ class SunDraw:
 
 @dataclass(frozen=True)
 class EarthDraw:
+    """albedo_scale (a uniform Earth's); surface "map" or "uniform"; cloud_pattern: which
+    of the patterns (0 the scenario's cloud seed, k its seed + k)."""
+
     albedo_scale: float
-    cloud_fraction: float
-    cloud_seed: int | None
-    surface: str  # "map" or "uniform"
+    surface: str
+    cloud_pattern: int
 
 
 @dataclass(frozen=True)
@@ -145,14 +147,11 @@ def draw_sun(ranges: SunRanges, seed: int, plan_index: int, hand_placed: bool) -
 
 
 def draw_earth(ranges: EarthRanges, seed: int, plan_index: int) -> EarthDraw:
-    rng = group_rng(seed, plan_index, "earth")
-    u = rng.random(3)
-    cloud_seed = int(rng.integers(0, 2**31 - 1))
+    u = group_rng(seed, plan_index, "earth").random(3)
     return EarthDraw(
         albedo_scale=_uniform(u[0], ranges.albedo_scale),
-        cloud_fraction=_uniform(u[1], ranges.cloud_fraction),
-        cloud_seed=cloud_seed if ranges.new_cloud_seed else None,
-        surface="map" if u[2] < ranges.surface_map_probability else "uniform",
+        surface="map" if u[1] < ranges.surface_map_probability else "uniform",
+        cloud_pattern=min(int(u[2] * ranges.cloud_patterns), ranges.cloud_patterns - 1),
     )
 
 
