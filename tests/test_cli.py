@@ -319,6 +319,19 @@ def _check_dn_image(
     saturated = dn[box] >= 0.97 * (bias + detector["full_well_e"] / gain)
     near_saturated = binary_dilation(saturated, structure=np.ones((9, 7), dtype=bool))
     inner = binary_erosion(on[box], iterations=3) & ~near_saturated
+    # ... and beyond the PSF's reach of a background brighter than the target (the Earth or
+    # Moon behind it), whose light the PSF's wings carry into the target's pixels: on a
+    # dark target before the sunlit Earth that adds over 1 % to the sum. A frame whose
+    # target lies wholly within that reach has no pixel left to check the sum on.
+    y0, x0 = box[0].start, box[1].start
+    wy, wx = max(y0 - reach_px, 0), max(x0 - reach_px, 0)
+    wide = np.s_[wy : box[0].stop + reach_px, wx : box[1].stop + reach_px]
+    level = radiance[on].sum(axis=-1).mean()
+    bright = (radiance[wide].sum(axis=-1) > level) & ~on[wide]
+    behind = maximum_filter(bright, size=2 * reach_px + 1)
+    inner &= ~behind[y0 - wy : y0 - wy + inner.shape[0], x0 - wx : x0 - wx + inner.shape[1]]
+    if not inner.any() and behind[y0 - wy :, x0 - wx :].any():
+        return
     assert inner.sum() > 300
     edges = np.linspace(*sensor["band_nm"], 4)
     lambda_rgb_m = [photon_weighted_wavelength_m((edges[k], edges[k + 1])) for k in (2, 1, 0)]

@@ -79,7 +79,9 @@ def test_procedural_satellites_take_the_library_materials_when_asked() -> None:
     from satsight.scene.materials import FIRST_MATERIALS
 
     band = (450.0, 900.0)
-    builtin = build_target(TargetConfig(procedural={"satellite_class": "two_wings", "seed": 2}))
+    builtin = build_target(
+        TargetConfig(procedural={"satellite_class": "two_wings", "seed": 2, "materials": "builtin"})
+    )
     library = build_target(
         TargetConfig(
             procedural={"satellite_class": "two_wings", "seed": 2, "materials": "library"}

@@ -14,6 +14,7 @@ from satsight.scene.keypoints import (
     read_keypoints_file,
 )
 from satsight.scene.procedural import SATELLITE_CLASSES
+from satsight.scene.replicas import REPLICA_CLASSES
 
 
 class _Strict(BaseModel):
@@ -47,26 +48,34 @@ class KeypointsConfig(_Strict):
 
 
 class ProceduralTargetConfig(_Strict):
-    """A procedural satellite (``satsight.scene.procedural``): class, seed and surfaces.
+    """A procedural satellite (``satsight.scene.procedural``) or a replica of a real one
+    (``satsight.scene.replicas``: icesat2, oco2, galaxy19, cloudsat, jason2, tango): class,
+    seed and surfaces.
 
     smooth_normals: crease-angle shading normals on curved parts (dish, cylinders).
     textures: solar-cell grids, MLI crinkle and radiator strips.
-    materials: ``builtin`` (the typed built-in values) or ``library`` (the spectral
-    library's materials for the scenario's band, ``band_reflectance.BUILTIN_LIBRARY_MATCH``).
+    materials: ``library`` (default: the spectral library's materials for the scenario's
+    band, ``band_reflectance.BUILTIN_LIBRARY_MATCH``) or ``builtin`` (the typed built-in
+    values; procedural classes only, the replicas' parts are library materials).
     """
 
     satellite_class: str = "two_wings"
     seed: int = Field(default=0, ge=0)
     smooth_normals: bool = True
     textures: bool = True
-    materials: Literal["builtin", "library"] = "builtin"
+    materials: Literal["builtin", "library"] = "library"
 
     @model_validator(mode="after")
     def _known_class(self) -> ProceduralTargetConfig:
-        if self.satellite_class not in SATELLITE_CLASSES:
+        if self.satellite_class not in SATELLITE_CLASSES + REPLICA_CLASSES:
             raise ValueError(
-                f"unknown satellite_class '{self.satellite_class}'; "
-                f"choose one of {', '.join(SATELLITE_CLASSES)}"
+                f"unknown satellite_class '{self.satellite_class}'; choose one of "
+                f"{', '.join(SATELLITE_CLASSES)} or a replica: {', '.join(REPLICA_CLASSES)}"
+            )
+        if self.satellite_class in REPLICA_CLASSES and self.materials == "builtin":
+            raise ValueError(
+                f"the replica '{self.satellite_class}' has spectral-library materials only; "
+                "remove 'materials: builtin' (or set 'materials: library')"
             )
         return self
 
