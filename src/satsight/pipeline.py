@@ -15,13 +15,7 @@ import numpy as np
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.camera import CameraConfig
 from satsight.config.scenario import Scenario, TargetConfig
-from satsight.constants import (
-    DEFAULT_BAND_NM,
-    EARTH_ALBEDO,
-    EARTH_EQUATORIAL_RADIUS_M,
-    MOON_ALBEDO,
-    MOON_MEAN_RADIUS_M,
-)
+from satsight.constants import DEFAULT_BAND_NM, EARTH_ALBEDO, MOON_ALBEDO, MOON_MEAN_RADIUS_M
 from satsight.dataset.frame_files import FrameArrays
 from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
@@ -37,6 +31,12 @@ from satsight.lighting.solar_spectrum import irradiance_at_distance_w_m2
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage
+from satsight.render.motion import (
+    MOTION_THRESHOLD_PX,
+    ExposureMotion,
+    exposure_motion,
+    render_over_exposure,
+)
 from satsight.render.renderer import Renderer
 from satsight.scene.band_reflectance import builtins_from_library, library_materials
 from satsight.scene.keypoints import target_keypoints_body_m
@@ -45,7 +45,8 @@ from satsight.scene.material_library import LIBRARY_PREFIX
 from satsight.scene.materials import FIRST_MATERIALS
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.procedural import generate_satellite
-from satsight.sensor.chain import DnImage, SensorChain, blur_radius_px, exposure_regions
+from satsight.sensor.chain import DnImage, SensorChain, exposure_regions
+from satsight.sensor.frame_stars import add_frame_stars
 from satsight.sensor.photometry import frame_photometry
 
 
@@ -201,83 +202,6 @@ def build_sensor(scenario: Scenario, camera: CameraConfig | None = None) -> Sens
     )
 
 
-def add_frame_stars(
-    scenario: Scenario,
-    sensor: SensorChain,
-    track: PoseTrack,
-    index: int,
-    irradiance_w_m2: np.ndarray,
-    object_mask: np.ndarray,
-    center_cam_m: np.ndarray,
-    exposure_time_s: float,
-) -> dict:
-    """Add the catalogue stars in view of frame ``index`` to its focal-plane irradiance, in
-    place, hidden behind the target (its mask), the Earth (with the atmosphere margin) and
-    the Moon; return the frame's star labels (each star's catalogue id, pixel position, V
-    magnitude, mean photons reaching the detector over the exposure and the detector's
-    quantum efficiency for its spectrum). Each star's photons are weighted by its own QE
-    over the chain's (``SensorChain.star_quantum_efficiency_ratio``), so the detector counts
-    its electrons at its own QE."""
-    config = scenario.stars
-    if not (config.enabled and track.has_sky):
-        return {"star_count": 0}
-    from satsight.sensor.star_catalog import load_star_catalog
-    from satsight.sensor.star_field import (
-        DEFAULT_STAMP_RADIUS_PX,
-        star_photon_counts,
-        stars_in_view,
-    )
-    from satsight.sensor.star_stamps import star_photons_image
-
-    # Stamps wide enough for the defocus disc and the jitter; stars are kept (and labelled)
-    # only when their stamp reaches the frame.
-    stamp_radius_px = DEFAULT_STAMP_RADIUS_PX + blur_radius_px(
-        sensor.optics, sensor.camera.pixel_pitch_m
-    )
-
-    def sphere(direction: np.ndarray, distance_m: float, radius_m: float):
-        return center_cam_m + direction * distance_m, radius_m
-
-    spheres = [
-        sphere(
-            track.earth_from_target_cam[index],
-            track.earth_distance_m[index],
-            EARTH_EQUATORIAL_RADIUS_M + config.earth_atmosphere_margin_km * 1e3,
-        ),
-        sphere(track.moon_from_target_cam[index], track.moon_distance_m[index], MOON_MEAN_RADIUS_M),
-    ]
-    stars = stars_in_view(
-        load_star_catalog(config.v_mag_limit),
-        track.R_cam_from_gcrs(index),
-        sensor.camera,
-        track.epoch_utc[index],
-        track.camera_velocity_gcrs_m_s[index],
-        occluding_spheres_cam=spheres,
-        object_mask=object_mask,
-        band_nm=sensor.band_nm,
-        margin_px=stamp_radius_px + 0.5,
-    )
-    qe_ratio = sensor.star_quantum_efficiency_ratio(stars.temperature_k)
-    star_photons_image(
-        stars,
-        object_mask.shape,
-        sensor.optics,
-        sensor.camera.pixel_pitch_m,
-        exposure_time_s,
-        sensor.band_nm,
-        stamp_radius_px,
-        out=irradiance_w_m2,
-        scale=sensor.photons_to_irradiance_factor(exposure_time_s) * qe_ratio,
-    )
-    labels = stars.labels()
-    photons = star_photon_counts(stars.photon_flux_m2_s, sensor.optics, exposure_time_s)
-    star_qe = sensor.detector.star_quantum_efficiency(sensor.band_nm, stars.temperature_k)
-    for record, count, qe in zip(labels["stars"], photons, star_qe, strict=True):
-        record["photons"] = float(count)
-        record["quantum_efficiency"] = float(qe)
-    return labels
-
-
 def expose_frame(
     scenario: Scenario,
     sensor: SensorChain,
@@ -285,25 +209,31 @@ def expose_frame(
     index: int,
     image: RadianceImage,
     center_cam_m: np.ndarray,
+    exposure_s: float | None = None,
 ) -> tuple[DnImage, dict]:
     """Frame ``index`` through the optics and the detector, with the stars behind the target.
 
     Returns the DN image and the frame's sensor labels (exposure, saturation, stars), with
     the exposure of the target and of the Earth and the Moon behind it told apart
     (``sensor.regions``): the exposure rule serves the target, and a bright Earth behind it
-    may saturate; the labels say by how much.
+    may saturate; the labels say by how much. exposure_s: the exposure decided before
+    (from the still of a frame blurred over it); default the rule's on ``image``.
     """
     irradiance = sensor.focal_plane_irradiance_w_m2(image)
     mask = image.object_mask
-    exposure_s = sensor.exposure_time_s(irradiance, mask)
+    if exposure_s is None:
+        exposure_s = sensor.exposure_time_s(irradiance, mask)
     regions = exposure_regions(mask, image.background_mask())
     # The regions' levels before the stars are added to the focal plane.
     fills = {
         name: sensor.region_fill(irradiance, exposure_s, where) for name, where in regions.items()
     }
-    stars = add_frame_stars(
-        scenario, sensor, track, index, irradiance, mask, center_cam_m, exposure_s
-    )
+    config, stars = scenario.stars, {"star_count": 0}
+    if config.enabled and track.has_sky:
+        stars = add_frame_stars(
+            sensor, track, index, irradiance, mask, center_cam_m, exposure_s,
+            config.v_mag_limit, config.earth_atmosphere_margin_km * 1e3,
+        )  # fmt: skip
     dn_image = sensor.read_out(
         irradiance, exposure_s, sensor_noise_rng(scenario.seed, index), stars["star_count"]
     )
@@ -330,6 +260,7 @@ class RenderedFrame:
     light: LightField
     image: RadianceImage
     camera_mode: str = "primary"
+    motion: ExposureMotion | None = None  # None: a still, its exposure decided in finish
 
 
 class FrameEngine:
@@ -395,14 +326,38 @@ class FrameEngine:
         light = frame_light(self.scenario, self.track, plan_index)
         mode = self.camera_mode(plan_index)
         camera, sensor = self.modes[mode]
-        image = self.renderer.render(
-            camera,
-            cam_from_body,
-            light,
-            seed=frame_seed(self.scenario.seed, plan_index),
-            margin_px=sensor.margin_px,
-        )
-        return RenderedFrame(frame_index, plan_index, cam_from_body, light, image, mode)
+        seed = frame_seed(self.scenario.seed, plan_index)
+
+        def render(pose: RigidTransform, light: LightField, seed: int) -> RadianceImage:
+            return self.renderer.render(camera, pose, light, seed, sensor.margin_px)
+
+        image = render(cam_from_body, light, seed)
+        motion = self.exposure_motion(plan_index, camera, sensor, image)
+        if motion is not None:
+            light_at = lambda track, i: frame_light(self.scenario, track, i)  # noqa: E731
+            image = render_over_exposure(
+                render, light_at, self.track, plan_index, image, seed, motion
+            )
+        return RenderedFrame(frame_index, plan_index, cam_from_body, light, image, mode, motion)
+
+    def exposure_motion(
+        self, plan_index: int, camera: PinholeCamera, sensor: SensorChain, still: RadianceImage
+    ) -> ExposureMotion | None:
+        """The motion of a frame over its exposure, decided on its still (``motion_blur``;
+        ``satsight.render.motion``), or None when it cannot reach the threshold."""
+        mode, rule = self.scenario.render.motion_blur, sensor.exposure
+        corners = self.mesh.box_keypoints_body_m[:8]
+        longest = rule.time_s if rule.mode == "fixed" else rule.max_time_s
+        probe = None
+        if mode is not False:
+            probe = exposure_motion(camera, self.track, plan_index, corners, longest, mode)
+        if probe is None or probe.path_px <= MOTION_THRESHOLD_PX:
+            return None  # (the path grows with the exposure)
+        exposure_s = rule.time_s
+        if rule.mode != "fixed":
+            irradiance = sensor.focal_plane_irradiance_w_m2(still)
+            exposure_s = sensor.exposure_time_s(irradiance, still.object_mask)
+        return exposure_motion(camera, self.track, plan_index, corners, exposure_s, mode)
 
     def finish(self, frame: RenderedFrame) -> tuple[dict, FrameArrays, tuple | None]:
         """Labels, optics and detector of a rendered frame.
@@ -436,7 +391,12 @@ class FrameEngine:
             plan_index,
             frame.image,
             frame.cam_from_body.apply(self.mesh.center_m),
+            None if frame.motion is None else frame.motion.exposure_s,
         )
+        motion = frame.motion or exposure_motion(
+            camera, self.track, plan_index, self.mesh.box_keypoints_body_m[:8],
+            dn_image.exposure_time_s, False,
+        )  # fmt: skip
         record: dict = {"frame_index": frame.frame_index, "plan_index": plan_index}
         if len(self.modes) > 1:
             record["camera_mode"] = frame.camera_mode
@@ -448,6 +408,7 @@ class FrameEngine:
         record.update(labels)
         record.update(photometry)
         record.update(sensor_labels)
+        record["exposure_motion"] = motion.labels()
         crop = scenario.outputs.crop
         box = None
         if crop is not None:

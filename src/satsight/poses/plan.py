@@ -76,9 +76,10 @@ from satsight.poses.plan_request import (
     ViewsPlanRequest,
     natural_span_s,
 )
+from satsight.poses.pose_rates import RATE_STEP_S, body_rate_rad_s
 from satsight.poses.rssf import rssf_samples
 from satsight.poses.sspt import sspt_angle_times_s, sspt_times_s
-from satsight.poses.track import FLAG_FIELDS, PoseTrack
+from satsight.poses.track import FLAG_FIELDS, RATE_FIELDS, PoseTrack
 from satsight.poses.view_track import views_track
 
 # Frames planned together past the flight (see `_orbital_track`): the Earth's orientation
@@ -290,6 +291,11 @@ def _orbital_track(
     n = len(flight.times_s)
     if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, int) or chunk_frames < 1:
         raise SatsightError(f"chunk_frames must be a whole number >= 1, got {chunk_frames!r}")
+    rates = {name: np.empty((n, 3)) for name in RATE_FIELDS}
+    for start in range(0, n, chunk_frames):
+        _flight_rates(
+            request, center_body, flight, slice(start, min(n, start + chunk_frames)), rates
+        )
     keep = request.visibility.on_fail == "keep"
     limits = request.visibility.limits
     columns = {name: np.empty((n, 4)) for name in ("q_cam_from_body", "q_cam_from_gcrs")}
@@ -317,7 +323,7 @@ def _orbital_track(
         interval_names = interval_names_for_ranges(
             columns["range_m"], default_intervals(include_hover=True)
         )
-    for array in (*columns.values(), r_obs, v_obs, times):
+    for array in (*columns.values(), *rates.values(), r_obs, v_obs, times):
         if array.flags.owndata:
             array.flags.writeable = False  # handed to the PoseTrack without a copy
     return PoseTrack(
@@ -326,8 +332,47 @@ def _orbital_track(
         interval=interval_names,
         camera_position_gcrs_m=r_obs,
         camera_velocity_gcrs_m_s=v_obs,
+        **rates,
         **columns,
     )
+
+
+def _flight_rates(
+    request: OrbitalPlanRequest,
+    center_body: np.ndarray,
+    flight: _Flight,
+    frames: slice,
+    rates: dict[str, np.ndarray],
+) -> None:
+    """Fill ``rates[...][frames]`` (``satsight.poses.pose_rates``): central differences of
+    the pose at t -+ RATE_STEP_S, both craft moved along their velocities (the common and
+    differential accelerations change the positions by a dt^2 / 2, which cancels in the
+    central difference) and the target turned by its attitude law."""
+    dt = RATE_STEP_S
+    poses = []
+    for step in (-dt, dt):
+        times = flight.times_s[frames] + step
+        r_t = flight.r_target_m[frames] + flight.v_target_m_s[frames] * step
+        v_t = flight.v_target_m_s[frames]
+        r_obs = flight.r_camera_m[frames] + flight.v_camera_m_s[frames] * step
+        q_gcrs_from_body = _target_attitude(request, r_t, v_t, times)
+        center = r_t + matrix_from_quaternion(q_gcrs_from_body) @ center_body
+        reference, reference_axis = camera_reference(
+            flight.roll_policy,
+            flight.reference_r_m[frames] + flight.reference_v_m_s[frames] * step,
+            flight.reference_v_m_s[frames],
+        )
+        q_gcrs_from_cam = pointing_gcrs_from_cam(
+            r_obs, center, reference, roll_rad=flight.roll_rad[frames],
+            reference_axis=reference_axis,
+        )  # fmt: skip
+        _, t = cam_from_body(q_gcrs_from_cam, q_gcrs_from_body, r_obs, r_t)
+        poses.append((q_gcrs_from_cam, q_gcrs_from_body, t))
+    (qc0, qb0, t0), (qc1, qb1, t1) = poses
+    span = np.full(len(t0), 2.0 * dt)
+    rates["omega_cam_rad_s"][frames] = body_rate_rad_s(qc0, qc1, span)
+    rates["omega_body_rad_s"][frames] = body_rate_rad_s(qb0, qb1, span)
+    rates["t_dot_cam_from_body_m_s"][frames] = (t1 - t0) / (2.0 * dt)
 
 
 def _plan_chunk(

@@ -27,6 +27,11 @@ row per frame, every array with the frame on its first axis:
   are the ICRS axes), scalar first; ``camera_position_gcrs_m`` (N, 3) and
   ``camera_velocity_gcrs_m_s`` (N, 3): the camera's geocentric state. All NaN for views
   given in the body frame (no orbit, so no sky).
+- ``omega_cam_rad_s`` (N, 3): the camera's inertial angular velocity in camera axes;
+  ``omega_body_rad_s`` (N, 3): the target's inertial angular velocity in body axes;
+  ``t_dot_cam_from_body_m_s`` (N, 3): the rate of ``t_cam_from_body_m`` (the body origin's
+  velocity seen in the turning camera frame). Central differences of the plan at t +- 0.05 s
+  (``satsight.poses.pose_rates``); zero for views given in the body frame (no motion).
 
 The pose convention is the one of the dataset labels (docs/conventions.md).
 """
@@ -51,6 +56,7 @@ _VECTOR_FIELDS = (
     "camera_position_gcrs_m",
     "camera_velocity_gcrs_m_s",
 )
+RATE_FIELDS = ("omega_cam_rad_s", "omega_body_rad_s", "t_dot_cam_from_body_m_s")
 _SCALAR_FIELDS = (
     "time_s",
     "sun_distance_m",
@@ -93,6 +99,9 @@ class PoseTrack:
     q_cam_from_gcrs: np.ndarray
     camera_position_gcrs_m: np.ndarray
     camera_velocity_gcrs_m_s: np.ndarray
+    omega_cam_rad_s: np.ndarray | None = None
+    omega_body_rad_s: np.ndarray | None = None
+    t_dot_cam_from_body_m_s: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = np.shape(self.time_s)[0] if np.ndim(self.time_s) == 1 else -1
@@ -121,8 +130,14 @@ class PoseTrack:
                 object.__setattr__(self, name, q)
         if not np.all(np.isfinite(self.q_cam_from_body)):
             raise SatsightError("PoseTrack.q_cam_from_body must be finite in every frame")
-        for name in _VECTOR_FIELDS:
+        for name in RATE_FIELDS:
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, np.zeros((n, 3)))
+        for name in (*_VECTOR_FIELDS, *RATE_FIELDS):
             check(name, (n, 3), np.float64)
+        for name in RATE_FIELDS:
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise SatsightError(f"PoseTrack.{name} must be finite in every frame")
         for name in _SCALAR_FIELDS:
             check(name, (n,), np.float64)
         for name in FLAG_FIELDS:
