@@ -11,7 +11,7 @@ Sources:
 
 Estimated (no published figure found here): the Proteus bus as a 1.0 m cube, the payload
 module 1.0 x 1.0 x 1.0 m, the Poseidon-3 dish 1.2 m (the Poseidon-2 size of Jason-1), the
-AMR's 0.75 m reflector, each wing's four 0.8 m x 1.5 m panels on a 0.5 m yoke (a 9.2 m
+AMR's 0.75 m reflector, each wing's four 0.8 m x 0.6 m panels on a 0.5 m yoke (an 8.7 m
 span), the DORIS antenna, laser retroreflector ring and radiators.
 
 Body frame: origin at the centre of the bus + payload stack; +z nadir, the altimeter's
@@ -31,7 +31,7 @@ PAYLOAD_M = (1.0, 1.0, 1.0)
 ALTIMETER_DIAMETER_M = 1.2
 AMR_DIAMETER_M = 0.75
 WING_PANELS = 4
-PANEL_LENGTH_M, PANEL_WIDTH_M, YOKE_M = 0.8, 1.5, 0.5
+PANEL_LENGTH_M, PANEL_WIDTH_M, YOKE_M = 0.8, 0.6, 0.5
 
 
 def build(parts: Parts, rng: np.random.Generator) -> None:
