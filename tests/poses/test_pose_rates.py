@@ -8,6 +8,8 @@ frame's. A spinning target's recorded body rate is its law's rate.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -15,7 +17,12 @@ from scipy.spatial.transform import Rotation
 from satsight.config.scenario import parse_scenario
 from satsight.frames.quaternion import matrix_from_quaternion
 from satsight.poses.plan import plan_track
-from satsight.poses.pose_rates import pose_at_offset, rotation_from_vector, rotation_vector
+from satsight.poses.pose_rates import (
+    pose_at_offset,
+    rotation_from_vector,
+    rotation_vector,
+    track_at_offset,
+)
 
 STEP_S = 0.1
 # Frames 0.1 s apart ~100 m from the target at closest approach: the camera turns at
@@ -116,3 +123,31 @@ def test_rotation_vectors_round_trip_through_the_exponential_map() -> None:
         np.testing.assert_allclose(R, Rotation.from_rotvec(w).as_matrix(), atol=1e-12)
         q = Rotation.from_rotvec(w).as_quat(scalar_first=True)
         np.testing.assert_allclose(rotation_vector(q), w, atol=1e-12)
+
+
+def test_the_sun_turns_in_body_axes_with_the_target_alone() -> None:
+    # A direction fixed in inertial axes (the Sun) seen from the body frame at tau: turned
+    # by -w_b tau when the target spins, unmoved when only the camera turns.
+    scenario = parse_scenario(
+        {
+            "name": "sun",
+            "camera": {"preset": "high_resolution", "width_px": 64, "height_px": 64},
+            "target": {"procedural": {"satellite_class": "two_wings", "seed": 1}},
+            "sun": {"azimuth_deg": 40.0, "elevation_deg": 25.0},
+            "frames": [{"distance_km": 0.1, "azimuth_deg": 30.0, "elevation_deg": 10.0}],
+        },
+        "test",
+    )
+    track = plan_track(scenario.plan_request(), np.zeros(3))
+
+    def sun_body(moving, tau: float) -> np.ndarray:
+        moved = track_at_offset(moving, 0, tau)
+        return matrix_from_quaternion(moved.q_cam_from_body[0]).T @ moved.sun_from_target_cam[0]
+
+    w_body, w_cam, tau = np.array([0.1, -0.3, 0.2]), np.array([0.02, 0.05, -0.4]), 0.1
+    spinning = dataclasses.replace(track, omega_body_rad_s=w_body[None, :])
+    turning = dataclasses.replace(track, omega_cam_rad_s=w_cam[None, :])
+    start = sun_body(track, 0.0)
+    expected = Rotation.from_rotvec(-w_body * tau).apply(start)
+    np.testing.assert_allclose(sun_body(spinning, tau), expected, atol=1e-12)
+    np.testing.assert_allclose(sun_body(turning, tau), start, atol=1e-12)

@@ -50,14 +50,14 @@ def plate_path(tmp_path_factory) -> str:
     return _plate(tmp_path_factory)
 
 
-def _engine(plate_path: str, blur, **rates) -> FrameEngine:
+def _engine(plate_path: str, blur, exposure: dict | None = None, **rates) -> FrameEngine:
     scenario = parse_scenario(
         {
             "name": "motion",
             "seed": 3,
             "camera": {
                 "preset": "high_resolution", "width_px": SIZE_PX, "height_px": SIZE_PX,
-                "exposure": {"mode": "fixed", "time_s": EXPOSURE_S},
+                "exposure": exposure or {"mode": "fixed", "time_s": EXPOSURE_S},
             },
             "target": {"mesh": {"path": plate_path, "materials": {"plate": "lambert_white"}}},
             "sun": {"azimuth_deg": 0.0, "elevation_deg": 60.0, "distance_au": 30.0},
@@ -208,3 +208,16 @@ def test_a_blurred_frame_is_the_same_bytes_twice(llvm_variant, plate_path) -> No
     first, second = (_engine(plate_path, "auto", **spin).render(0) for _ in range(2))
     assert first.motion.sample_count > 1
     assert first.image.radiance_w_m2_sr.tobytes() == second.image.radiance_w_m2_sr.tobytes()
+
+
+def test_the_auto_exposure_is_decided_on_the_still(llvm_variant, plate_path) -> None:
+    # The exposure rule reads the still (mid-exposure); the time samples then span it.
+    auto = {"mode": "auto", "fill_fraction": 0.7}
+    spin = {"omega_body_rad_s": [0.0, 0.0, SPIN_RAD_S]}
+    _, still_record, _ = _frame(_engine(plate_path, False, auto, **spin))
+    blurred, record, _ = _frame(_engine(plate_path, "auto", auto, **spin))
+    exposure_s = still_record["sensor"]["exposure_time_s"]
+    assert record["sensor"]["exposure_time_s"] == exposure_s == blurred.motion.exposure_s
+    assert record["exposure_motion"]["end_offset_s"] == 0.5 * exposure_s
+    arc_px = HALF_DIAGONAL_M * SPIN_RAD_S * exposure_s / RANGE_M * F_PX
+    assert record["exposure_motion"]["path_px"] == pytest.approx(arc_px, rel=1e-3)
