@@ -7,7 +7,6 @@ runs it over a dataset and writes the files.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,21 +14,19 @@ import numpy as np
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.camera import CameraConfig
 from satsight.config.scenario import Scenario, TargetConfig
-from satsight.constants import DEFAULT_BAND_NM, EARTH_ALBEDO, MOON_ALBEDO, MOON_MEAN_RADIUS_M
+from satsight.constants import DEFAULT_BAND_NM
 from satsight.dataset.frame_files import FrameArrays
 from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
-from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
-from satsight.ephemeris.time import parse_epoch_utc
 from satsight.errors import SatsightError
+from satsight.frame_light import frame_light, sun_irradiance_w_m2
 from satsight.frame_memory import check_frame_memory
+from satsight.frame_variation import FramePoses, FrameVariation
 from satsight.frames.rigid import RigidTransform
-from satsight.lighting.bodies import environment_light_field
 from satsight.lighting.light_field import LightField
-from satsight.lighting.scene_bodies import earth_body, moon_body
-from satsight.lighting.solar_spectrum import irradiance_at_distance_w_m2
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
+from satsight.randomization.draws import FrameDraws
 from satsight.render.buffers import RadianceImage
 from satsight.render.motion import (
     MOTION_THRESHOLD_PX,
@@ -77,86 +74,6 @@ def build_target(config: TargetConfig, band_nm: tuple[float, float] | None = Non
         crease_angle_deg=m.crease_angle_deg,
         strict_textures=m.strict_textures,
     )
-
-
-def sun_irradiance_w_m2(scenario: Scenario, track: PoseTrack, index: int) -> float:
-    """The Sun's in-band irradiance (W m^-2) at the target in plan frame ``index``, before
-    the Earth's shadow: the scenario's ``sun`` value for hand-placed views; on an orbit, its
-    value at 1 AU scaled to the frame's Sun distance (inverse square)."""
-    if scenario.sampler is None:
-        return scenario.sun.in_band_irradiance_w_m2
-    at_1_au = scenario.sun.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
-    return irradiance_at_distance_w_m2(at_1_au, track.sun_distance_m[index])
-
-
-def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> LightField:
-    """The light at the target in frame ``index`` of the plan, in the body frame.
-
-    The Sun's in-band irradiance is the scenario's value at 1 AU scaled by the inverse square
-    of the frame's Sun distance; the Earth and the Moon are lit by all of it, the target by
-    its ``sunlit_fraction`` (partly or wholly in the Earth's shadow). Earthshine and moonshine
-    are included when the scenario has ``earth`` / ``moon`` sections: as SH coefficients and
-    as bodies in the scene (``SceneBody``; the Earth's fixed frame is the ITRS at the frame's
-    epoch, or the target's body frame when the scenario has no epoch).
-    """
-    R_body_from_cam = track.cam_from_body(index).R_a_from_b.T
-    irradiance = sun_irradiance_w_m2(scenario, track, index)
-    sun_body = R_body_from_cam @ track.sun_from_target_cam[index]
-    at_target = irradiance * float(track.sunlit_fraction[index])
-
-    def center_body(direction_cam: np.ndarray, distance_m: float) -> np.ndarray:
-        return R_body_from_cam @ (direction_cam * distance_m)
-
-    earth, moon = scenario.earth, scenario.moon
-    earth_center = (
-        None
-        if earth is None
-        else center_body(track.earth_from_target_cam[index], track.earth_distance_m[index])
-    )
-    moon_center = (
-        None
-        if moon is None
-        else center_body(track.moon_from_target_cam[index], track.moon_distance_m[index])
-    )
-    bodies = []
-    if earth is not None:
-        bodies.append(
-            earth_body(
-                earth_center,
-                R_body_from_cam @ _R_cam_from_earth_fixed(track, index),
-                earth.albedo,
-                sun_body,
-                irradiance,
-                albedo_map=earth.albedo_map(),
-                shape=earth.shape,
-            )
-        )
-    # The SH field (environment: sh, unshadowed) projects the same Earth the renderer
-    # traces: its shape, orientation and albedo map.
-    light = environment_light_field(
-        sun_body,
-        irradiance,
-        earth_center_from_target_m=earth_center,
-        earth_albedo=EARTH_ALBEDO if earth is None else earth.albedo,
-        moon_center_from_target_m=moon_center,
-        moon_albedo=MOON_ALBEDO if moon is None else moon.albedo,
-        l_max=scenario.render.sh_order,
-        sun_irradiance_at_target_w_m2=at_target,
-        earth=bodies[0] if bodies else None,
-    )
-    if moon is not None:
-        bodies.append(moon_body(moon_center, MOON_MEAN_RADIUS_M, moon.albedo, sun_body, irradiance))
-    return dataclasses.replace(light, bodies=tuple(bodies))
-
-
-def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:
-    """Rotation from the Earth's fixed frame (ITRS at the frame's epoch, skyfield's
-    precession-nutation and Earth rotation) to the camera frame; without an inertial
-    attitude (views given in the body frame) the target's body frame stands in for it."""
-    if not (track.has_sky and track.epoch_utc[index]):
-        return track.cam_from_body(index).R_a_from_b
-    R_itrs_from_gcrs_now = R_itrs_from_gcrs(parse_epoch_utc(track.epoch_utc[index]))[0]
-    return track.R_cam_from_gcrs(index) @ R_itrs_from_gcrs_now.T
 
 
 def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:
@@ -210,6 +127,7 @@ def expose_frame(
     image: RadianceImage,
     center_cam_m: np.ndarray,
     exposure_s: float | None = None,
+    R_cam_from_planned: np.ndarray | None = None,
 ) -> tuple[DnImage, dict]:
     """Frame ``index`` through the optics and the detector, with the stars behind the target.
 
@@ -218,6 +136,7 @@ def expose_frame(
     (``sensor.regions``): the exposure rule serves the target, and a bright Earth behind it
     may saturate; the labels say by how much. exposure_s: the exposure decided before
     (from the still of a frame blurred over it); default the rule's on ``image``.
+    R_cam_from_planned: a randomised camera roll, which turns the stars (default none).
     """
     irradiance = sensor.focal_plane_irradiance_w_m2(image)
     mask = image.object_mask
@@ -232,7 +151,7 @@ def expose_frame(
     if config.enabled and track.has_sky:
         stars = add_frame_stars(
             sensor, track, index, irradiance, mask, center_cam_m, exposure_s,
-            config.v_mag_limit, config.earth_atmosphere_margin_km * 1e3,
+            config.v_mag_limit, config.earth_atmosphere_margin_km * 1e3, R_cam_from_planned,
         )  # fmt: skip
     dn_image = sensor.read_out(
         irradiance, exposure_s, sensor_noise_rng(scenario.seed, index), stars["star_count"]
@@ -261,6 +180,8 @@ class RenderedFrame:
     image: RadianceImage
     camera_mode: str = "primary"
     motion: ExposureMotion | None = None  # None: a still, its exposure decided in finish
+    draws: FrameDraws | None = None  # a randomised frame's draws
+    poses: FramePoses | None = None  # and its poses
 
 
 class FrameEngine:
@@ -290,6 +211,7 @@ class FrameEngine:
         if far is not None:
             self.modes["far"] = (far.build(), build_sensor(scenario, far))
         self._renderer: Renderer | None = None
+        self.variation = FrameVariation.of(scenario, self.mesh)
 
     def camera_mode(self, plan_index: int) -> str:
         """The camera mode of plan frame ``plan_index``: ``far`` when its range to the
@@ -322,23 +244,44 @@ class FrameEngine:
     def render(self, frame_index: int) -> RenderedFrame:
         """Render frame ``frame_index`` of the dataset (its seed from its plan index)."""
         plan_index = int(self.plan_indices[frame_index])
-        cam_from_body = self.track.cam_from_body(plan_index)
-        light = frame_light(self.scenario, self.track, plan_index)
         mode = self.camera_mode(plan_index)
         camera, sensor = self.modes[mode]
         seed = frame_seed(self.scenario.seed, plan_index)
+        variation, draws, renderer = self.variation, None, self.renderer
+        if variation is not None:
+            draws = variation.draw(plan_index)
+            renderer, sensor = variation.renderer(renderer, draws), variation.sensor(sensor, draws)
+
+        def light_at(track: PoseTrack, i: int) -> LightField:
+            if variation is None:
+                return frame_light(self.scenario, track, i)
+            return frame_light(
+                variation.light_scenario(draws),
+                track,
+                i,
+                variation.poses(track.cam_from_body(i), draws).light_cam_from_body,
+                variation.sun_direction_cam(track.sun_from_target_cam[i], draws),
+                variation.irradiance_scale(draws),
+            )
 
         def render(pose: RigidTransform, light: LightField, seed: int) -> RadianceImage:
-            return self.renderer.render(camera, pose, light, seed, sensor.margin_px)
+            if variation is not None:  # the planned pose, rolled and jittered
+                pose = variation.poses(pose, draws).cam_from_body
+            return renderer.render(camera, pose, light, seed, sensor.margin_px)
 
-        image = render(cam_from_body, light, seed)
+        planned = self.track.cam_from_body(plan_index)
+        light = light_at(self.track, plan_index)
+        image = render(planned, light, seed)
         motion = self.exposure_motion(plan_index, camera, sensor, image)
         if motion is not None:
-            light_at = lambda track, i: frame_light(self.scenario, track, i)  # noqa: E731
             image = render_over_exposure(
                 render, light_at, self.track, plan_index, image, seed, motion
             )
-        return RenderedFrame(frame_index, plan_index, cam_from_body, light, image, mode, motion)
+        poses = None if variation is None else variation.poses(planned, draws)
+        cam_from_body = planned if poses is None else poses.cam_from_body
+        return RenderedFrame(
+            frame_index, plan_index, cam_from_body, light, image, mode, motion, draws, poses
+        )
 
     def exposure_motion(
         self, plan_index: int, camera: PinholeCamera, sensor: SensorChain, still: RadianceImage
@@ -351,7 +294,7 @@ class FrameEngine:
         probe = None
         if mode is not False:
             probe = exposure_motion(camera, self.track, plan_index, corners, longest, mode)
-        if probe is None or probe.path_px <= MOTION_THRESHOLD_PX:
+        if probe is None or (probe.sample_count == 1 and probe.path_px <= MOTION_THRESHOLD_PX):
             return None  # (the path grows with the exposure)
         exposure_s = rule.time_s
         if rule.mode != "fixed":
@@ -367,6 +310,10 @@ class FrameEngine:
         """
         scenario, plan_index = self.scenario, frame.plan_index
         camera, sensor = self.modes[frame.camera_mode]
+        variation, roll = self.variation, None
+        if variation is not None:
+            sensor = variation.sensor(sensor, frame.draws)
+            roll = frame.poses.rolled_from_planned.R_a_from_b
         labels = frame_labels(
             self.mesh,
             camera,
@@ -376,6 +323,8 @@ class FrameEngine:
             self.keypoints_body_m,
         )
         sun_irradiance, sun_distance_m = self.sun_irradiance_at_camera(plan_index)
+        if variation is not None:
+            sun_irradiance *= variation.irradiance_scale(frame.draws)
         photometry = frame_photometry(
             frame.image,
             camera,
@@ -392,6 +341,7 @@ class FrameEngine:
             frame.image,
             frame.cam_from_body.apply(self.mesh.center_m),
             None if frame.motion is None else frame.motion.exposure_s,
+            roll,
         )
         motion = frame.motion or exposure_motion(
             camera, self.track, plan_index, self.mesh.box_keypoints_body_m[:8],
@@ -409,6 +359,8 @@ class FrameEngine:
         record.update(photometry)
         record.update(sensor_labels)
         record["exposure_motion"] = motion.labels()
+        if variation is not None:
+            record["randomized"] = variation.record(frame.draws, sensor, frame.poses)
         crop = scenario.outputs.crop
         box = None
         if crop is not None:

@@ -16,10 +16,11 @@ frame's own (tau = 0), and the still render (the frame's seed) is that sub-frame
 The motion is measured on the target's bounding-box corners projected through the pinhole:
 ``motion_px`` is the largest displacement of a corner between the exposure's start and end,
 ``path_px`` the longest corner path over it (``PATH_STEPS`` chords: a turning corner's arc).
-Rules: ``motion_blur: auto`` blurs when ``motion_px > MOTION_THRESHOLD_PX``; the sample count
-is ``n = ceil(path_px / SAMPLE_SPACING_PX)``, at most ``MAX_TIME_SAMPLES``, so consecutive
-sub-frames move <= 0.5 px (below the pixel's own box and the optics blur) up to 16 px of
-smear; beyond it the images of the sub-frames are path_px / 32 apart.
+Rules: ``motion_blur: auto`` blurs when ``motion_px > MOTION_THRESHOLD_PX`` (``true``: any
+motion, however small); the sample count is ``n = ceil(path_px / SAMPLE_SPACING_PX)``, at
+least 2 and at most ``MAX_TIME_SAMPLES``, so consecutive sub-frames move <= 0.5 px (below
+the pixel's own box and the optics blur) up to 16 px of smear; beyond it the sub-frames'
+images are path_px / 32 apart.
 """
 
 from __future__ import annotations
@@ -115,10 +116,10 @@ def exposure_motion(
     paths = corner_paths_px(camera, track, index, corners_body_m, steps)
     motion_px = float(np.max(np.linalg.norm(paths[-1] - paths[0], axis=-1)))
     path_px = float(np.max(np.linalg.norm(np.diff(paths, axis=0), axis=-1).sum(axis=0)))
-    blur = mode is True or (mode == "auto" and motion_px > MOTION_THRESHOLD_PX)
+    blur = (mode is True and path_px > 0) or (mode == "auto" and motion_px > MOTION_THRESHOLD_PX)
     n = 1
     if blur:
-        n = min(MAX_TIME_SAMPLES, max(1, math.ceil(path_px / SAMPLE_SPACING_PX)))
+        n = min(MAX_TIME_SAMPLES, max(2, math.ceil(path_px / SAMPLE_SPACING_PX)))
     offsets = ((np.arange(n) + 0.5) / n - 0.5) * exposure_s
     return ExposureMotion(float(exposure_s), motion_px, path_px, offsets)
 
