@@ -227,4 +227,7 @@ class PoseTrack:
             "q_cam_from_gcrs": vector(self.q_cam_from_gcrs[i]),
             "camera_position_gcrs_m": vector(self.camera_position_gcrs_m[i]),
             "camera_velocity_gcrs_m_s": vector(self.camera_velocity_gcrs_m_s[i]),
+            "omega_cam_rad_s": vector(self.omega_cam_rad_s[i]),
+            "omega_body_rad_s": vector(self.omega_body_rad_s[i]),
+            "t_dot_cam_from_body_m_s": vector(self.t_dot_cam_from_body_m_s[i]),
         }
