@@ -128,6 +128,7 @@ def expose_frame(
     center_cam_m: np.ndarray,
     exposure_s: float | None = None,
     R_cam_from_planned: np.ndarray | None = None,
+    irradiance_w_m2: np.ndarray | None = None,
 ) -> tuple[DnImage, dict]:
     """Frame ``index`` through the optics and the detector, with the stars behind the target.
 
@@ -137,8 +138,12 @@ def expose_frame(
     may saturate; the labels say by how much. exposure_s: the exposure decided before
     (from the still of a frame blurred over it); default the rule's on ``image``.
     R_cam_from_planned: a randomised camera roll, which turns the stars (default none).
+    irradiance_w_m2: ``image``'s focal-plane irradiance when already computed (copied).
     """
-    irradiance = sensor.focal_plane_irradiance_w_m2(image)
+    if irradiance_w_m2 is None:
+        irradiance = sensor.focal_plane_irradiance_w_m2(image)
+    else:
+        irradiance = irradiance_w_m2.copy()
     mask = image.object_mask
     if exposure_s is None:
         exposure_s = sensor.exposure_time_s(irradiance, mask)
@@ -180,6 +185,7 @@ class RenderedFrame:
     image: RadianceImage
     camera_mode: str = "primary"
     motion: ExposureMotion | None = None  # None: a still, its exposure decided in finish
+    still_irradiance_w_m2: np.ndarray | None = None  # the still's, when its image is the still
     draws: FrameDraws | None = None  # a randomised frame's draws
     poses: FramePoses | None = None  # and its poses
 
@@ -272,22 +278,25 @@ class FrameEngine:
         planned = self.track.cam_from_body(plan_index)
         light = light_at(self.track, plan_index)
         image = render(planned, light, seed)
-        motion = self.exposure_motion(plan_index, camera, sensor, image)
-        if motion is not None:
+        motion, irradiance = self.exposure_motion(plan_index, camera, sensor, image)
+        if motion is not None and motion.sample_count > 1:
+            irradiance = None
             image = render_over_exposure(
                 render, light_at, self.track, plan_index, image, seed, motion
             )
         poses = None if variation is None else variation.poses(planned, draws)
         cam_from_body = planned if poses is None else poses.cam_from_body
         return RenderedFrame(
-            frame_index, plan_index, cam_from_body, light, image, mode, motion, draws, poses
-        )
+            frame_index, plan_index, cam_from_body, light, image, mode, motion, irradiance,
+            draws, poses,
+        )  # fmt: skip
 
     def exposure_motion(
         self, plan_index: int, camera: PinholeCamera, sensor: SensorChain, still: RadianceImage
-    ) -> ExposureMotion | None:
+    ) -> tuple[ExposureMotion | None, np.ndarray | None]:
         """The motion of a frame over its exposure, decided on its still (``motion_blur``;
-        ``satsight.render.motion``), or None when it cannot reach the threshold."""
+        ``satsight.render.motion``), or None when it cannot reach the threshold; and the
+        still's focal-plane irradiance when the auto exposure needed it (None otherwise)."""
         mode, rule = self.scenario.render.motion_blur, sensor.exposure
         corners = self.mesh.box_keypoints_body_m[:8]
         longest = rule.time_s if rule.mode == "fixed" else rule.max_time_s
@@ -295,12 +304,13 @@ class FrameEngine:
         if mode is not False:
             probe = exposure_motion(camera, self.track, plan_index, corners, longest, mode)
         if probe is None or (probe.sample_count == 1 and probe.path_px <= MOTION_THRESHOLD_PX):
-            return None  # (the path grows with the exposure)
-        exposure_s = rule.time_s
+            return None, None  # (the path grows with the exposure)
+        exposure_s, irradiance = rule.time_s, None
         if rule.mode != "fixed":
             irradiance = sensor.focal_plane_irradiance_w_m2(still)
             exposure_s = sensor.exposure_time_s(irradiance, still.object_mask)
-        return exposure_motion(camera, self.track, plan_index, corners, exposure_s, mode)
+        motion = exposure_motion(camera, self.track, plan_index, corners, exposure_s, mode)
+        return motion, irradiance
 
     def finish(self, frame: RenderedFrame) -> tuple[dict, FrameArrays, tuple | None]:
         """Labels, optics and detector of a rendered frame.
@@ -342,6 +352,7 @@ class FrameEngine:
             frame.cam_from_body.apply(self.mesh.center_m),
             None if frame.motion is None else frame.motion.exposure_s,
             roll,
+            frame.still_irradiance_w_m2,
         )
         motion = frame.motion or exposure_motion(
             camera, self.track, plan_index, self.mesh.box_keypoints_body_m[:8],

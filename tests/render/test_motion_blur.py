@@ -221,3 +221,19 @@ def test_the_auto_exposure_is_decided_on_the_still(llvm_variant, plate_path) -> 
     assert record["exposure_motion"]["end_offset_s"] == 0.5 * exposure_s
     arc_px = HALF_DIAGONAL_M * SPIN_RAD_S * exposure_s / RANGE_M * F_PX
     assert record["exposure_motion"]["path_px"] == pytest.approx(arc_px, rel=1e-3)
+
+
+def test_a_still_under_the_auto_exposure_gives_the_same_bytes_as_blur_off(
+    llvm_variant, plate_path
+) -> None:
+    # 2e-3 rad/s: the box corners could move 1.9 px over the longest auto exposure (10 s),
+    # so the still's irradiance is computed for the exposure decision, but only ~0.06 px
+    # over the exposure chosen (~0.3 s): the frame stays the still, its DN those of blur off.
+    auto = {"mode": "auto", "fill_fraction": 0.7}
+    slow = {"omega_body_rad_s": [0.0, 0.0, 2e-3]}
+    _, off_record, off_arrays = _frame(_engine(plate_path, False, auto, **slow))
+    still, record, arrays = _frame(_engine(plate_path, "auto", auto, **slow))
+    assert still.still_irradiance_w_m2 is not None and still.motion.sample_count == 1
+    assert record["exposure_motion"]["motion_px"] < 0.1
+    assert record["sensor"]["exposure_time_s"] == off_record["sensor"]["exposure_time_s"]
+    assert arrays.dn_image.dn.tobytes() == off_arrays.dn_image.dn.tobytes()
