@@ -14,10 +14,10 @@ from satsight.ephemeris.orbits import orbital_period_s, propagate, state_from_el
 from satsight.ephemeris.sun_moon import sun_position_gcrs_m
 from satsight.ephemeris.time import epoch_times
 from satsight.errors import SatsightError
+from satsight.frame_light import frame_light
 from satsight.frames.orbital import lvlh_from_inertial
 from satsight.frames.quaternion import matrix_from_quaternion
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
-from satsight.pipeline import frame_light
 from satsight.poses.distance_intervals import APPROACH_INTERVALS_KM
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.rssf import fibonacci_sphere

@@ -41,6 +41,7 @@ from satsight.config.orbital import (
 )
 from satsight.config.outputs import OutputsConfig
 from satsight.config.plan_request import check_sspt_size, orbital_plan_request
+from satsight.config.randomize import RandomizeConfig
 from satsight.config.sensor import StarsConfig
 from satsight.config.target import (  # noqa: F401 (re-exported: the scenario's sections)
     KeypointsConfig,
@@ -249,6 +250,7 @@ class Scenario(_Strict):
     render: RenderConfig = RenderConfig()
     stars: StarsConfig = StarsConfig()
     outputs: OutputsConfig = OutputsConfig()
+    randomize: RandomizeConfig = RandomizeConfig()
 
     @model_validator(mode="after")
     def _crop_fits(self) -> Scenario:

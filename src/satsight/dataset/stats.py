@@ -3,10 +3,11 @@
 Counts per distance interval, per target class and per visibility flag; histograms of the
 range (log bins), phase angle, visible pixel fraction, exposure time, saturated pixel count,
 the target's V-equivalent magnitude and the Earth's level behind the target (fraction of
-full well). Everything comes from the frame records (no image
-is read); ``stats.json`` holds the numbers and ``stats.png`` draws them. Frames without a
-value (a target that sends no light has no magnitude; datasets written before a label
-existed lack it) are counted as ``missing``.
+full well); in a randomised dataset, one histogram per randomised value
+(``randomized.GROUP.KEY``, each material's draws pooled over the materials). Everything
+comes from the frame records (no image is read); ``stats.json`` holds the numbers and
+``stats.png`` draws them. Frames without a value (a target that sends no light has no
+magnitude; datasets written before a label existed lack it) are counted as ``missing``.
 
 The records are read once, one at a time: counts are kept per group, and the histograms'
 inputs as a few floats per frame (``array('d')``), so that a dataset of 10^6 frames is
@@ -83,11 +84,58 @@ def _value(frame: dict, name: str) -> float | None:
     return value if np.isfinite(value) else None
 
 
+#: A randomised value's unit, from the end of its name.
+_RANDOMIZED_UNITS = (("_e_per_dn", "e-/DN"), ("_rad", "rad"), ("_m", "m"), ("_e", "e-"))
+#: The draws of each material that are pooled over the materials (one value per material).
+_MATERIAL_DRAWS = ("roughness_scale", "base_color_scale", "ior_shift")
+
+
+def randomized_spec(name: str) -> tuple[str, str, str]:
+    """(unit, bin scale, axis label) of a randomised value ``randomized.GROUP.KEY``."""
+    key = name.rsplit(".", 1)[-1]
+    unit = next((u for suffix, u in _RANDOMIZED_UNITS if key.endswith(suffix)), "1")
+    pooled = " (every material)" if ".materials." in name else ""
+    return unit, "linear", f"{name.removeprefix('randomized.')}{pooled}"
+
+
+def randomized_values(frame: dict) -> dict[str, list[float]]:
+    """A frame's randomised numbers (its ``randomized`` label) by ``randomized.GROUP.KEY``:
+    each group's numeric values, and each material's draws pooled over the materials."""
+    record = frame.get("randomized")
+    out: dict[str, list[float]] = {}
+    if not isinstance(record, dict):
+        return out
+
+    def number(value) -> float | None:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            return None
+        return float(value) if np.isfinite(value) else None
+
+    for group, values in record.items():
+        if not isinstance(values, dict):
+            continue
+        if group == "materials":
+            for material in values.values():
+                for key in _MATERIAL_DRAWS:
+                    value = number(material.get(key)) if isinstance(material, dict) else None
+                    if value is not None:
+                        out.setdefault(f"randomized.materials.{key}", []).append(value)
+            continue
+        for key, value in values.items():
+            if (value := number(value)) is not None:
+                out[f"randomized.{group}.{key}"] = [value]
+    return out
+
+
+def _spec(name: str) -> tuple[str, str, str]:
+    return DISTRIBUTIONS[name] if name in DISTRIBUTIONS else randomized_spec(name)
+
+
 def bin_edges(values: np.ndarray, name: str) -> np.ndarray:
     """Histogram bin edges of distribution ``name`` over ``values`` (not empty)."""
     low, high = float(values.min()), float(values.max())
     bins = int(min(MAX_BINS, max(5, np.ceil(np.sqrt(values.size)))))
-    scale = DISTRIBUTIONS[name][1]
+    scale = _spec(name)[1]
     if name == "phase_angle_deg":
         return np.arange(0.0, 180.0 + PHASE_BIN_DEG, PHASE_BIN_DEG)
     if name == "saturated_pixel_count" and high - low < bins:
@@ -104,7 +152,7 @@ def bin_edges(values: np.ndarray, name: str) -> np.ndarray:
 def histogram(values: Sequence[float], name: str, missing: int) -> dict:
     """JSON-ready histogram of one distribution (``values``: a list, an ``array('d')`` or
     a numpy array): unit, scale, edges, counts, summary."""
-    unit, scale, label = DISTRIBUTIONS[name]
+    unit, scale, label = _spec(name)
     result = {"unit": unit, "scale": scale, "label": label, "missing": missing}
     if not len(values):
         return {**result, "edges": [], "counts": [], "min": None, "median": None, "max": None}
@@ -135,6 +183,8 @@ def dataset_stats(dataset: Dataset) -> dict:
     visibility = dict.fromkeys(VISIBILITY_FLAGS, 0)
     values = {name: array("d") for name in DISTRIBUTIONS}
     missing = dict.fromkeys(DISTRIBUTIONS, 0)
+    randomized: dict[str, array] = {}
+    randomized_frames: Counter = Counter()  # frames holding each randomised value
     count = 0
     for frame in dataset.frames:
         count += 1
@@ -153,6 +203,12 @@ def dataset_stats(dataset: Dataset) -> dict:
                 missing[name] += 1
             else:
                 values[name].append(value)
+        for name, drawn in randomized_values(frame).items():
+            randomized.setdefault(name, array("d")).extend(drawn)
+            randomized_frames[name] += 1
+    for name in sorted(randomized):
+        values[name] = randomized[name]
+        missing[name] = count - randomized_frames[name]
     ids = np.asarray(frame_interval, dtype=np.int64)
     ranges = np.asarray(frame_range, dtype=np.float64)
     median = {name: float(np.median(ranges[ids == k])) for name, k in interval_ids.items()}
@@ -167,9 +223,7 @@ def dataset_stats(dataset: Dataset) -> dict:
             "target_class": dict(classes),
             "visibility": visibility,
         },
-        "histograms": {
-            name: histogram(values[name], name, missing[name]) for name in DISTRIBUTIONS
-        },
+        "histograms": {name: histogram(values[name], name, missing[name]) for name in values},
     }
 
 

@@ -6,14 +6,18 @@ from pathlib import Path
 
 import numpy as np
 
+#: Panels per row; more histograms (a randomised dataset's) add rows.
+MAX_COLUMNS = 4
+
 
 def plot_stats(stats: dict, path: Path) -> Path:
-    """Draw ``stats`` (from ``dataset_stats``) as a grid of panels in two rows, saved as PNG.
+    """Draw ``stats`` (from ``dataset_stats``) as a grid of panels, four to a row (two rows
+    for a dataset without randomised values), saved as PNG.
 
     Panels: one per histogram (range on a log axis, m; phase angle, deg; visible pixel
     fraction; exposure time, s; saturated pixel count; target V-equivalent magnitude; the
-    Earth's level behind the target), then
-    frames per distance interval. Returns ``path``.
+    Earth's level behind the target; then each randomised value), then frames per distance
+    interval. Returns ``path``.
     """
     import matplotlib
 
@@ -21,8 +25,10 @@ def plot_stats(stats: dict, path: Path) -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator
 
-    cols = -(-(len(stats["histograms"]) + 1) // 2)
-    fig, axes = plt.subplots(2, cols, figsize=(5 * cols, 8.5), layout="constrained")
+    panels = len(stats["histograms"]) + 1
+    cols = min(MAX_COLUMNS, -(-panels // 2))
+    rows = -(-panels // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(5 * cols, 4.25 * rows), layout="constrained")
     for ax in axes.ravel()[len(stats["histograms"]) : -1]:
         ax.axis("off")
     for ax, hist in zip(axes.ravel(), stats["histograms"].values(), strict=False):

@@ -42,6 +42,7 @@ def add_frame_stars(
     exposure_time_s: float,
     v_mag_limit: float,
     earth_atmosphere_margin_m: float,
+    R_cam_from_planned: np.ndarray | None = None,
 ) -> dict:
     """Add the catalogue stars in view of frame ``index`` to its focal-plane irradiance, in
     place, hidden behind the target (its mask), the Earth (with the atmosphere margin) and
@@ -50,7 +51,8 @@ def add_frame_stars(
     reaching the detector over the exposure and the detector's quantum efficiency for its
     spectrum). Each star's photons are weighted by its own QE over the chain's
     (``SensorChain.star_quantum_efficiency_ratio``), so the detector counts its electrons
-    at its own QE."""
+    at its own QE. R_cam_from_planned: the camera's turn from the plan's camera frame (a
+    randomised roll); the plan's directions and rates are turned by it (default none)."""
     from satsight.sensor.star_catalog import load_star_catalog
     from satsight.sensor.star_field import (
         DEFAULT_STAMP_RADIUS_PX,
@@ -60,17 +62,17 @@ def add_frame_stars(
     from satsight.sensor.star_stamps import star_photons_image
 
     camera = sensor.camera
-    offsets = star_trail_offsets_s(
-        track.omega_cam_rad_s[index], camera.focal_length_px, exposure_time_s
-    )
-    trail_px = float(np.linalg.norm(track.omega_cam_rad_s[index])) * exposure_time_s
+    R = np.eye(3) if R_cam_from_planned is None else np.asarray(R_cam_from_planned)
+    omega_cam_rad_s = R @ track.omega_cam_rad_s[index]
+    offsets = star_trail_offsets_s(omega_cam_rad_s, camera.focal_length_px, exposure_time_s)
+    trail_px = float(np.linalg.norm(omega_cam_rad_s)) * exposure_time_s
     trail_px *= camera.focal_length_px
     # Stamps wide enough for the defocus disc and the jitter (and half the trail); stars
     # are kept (and labelled) only when their stamp reaches the frame.
     stamp_radius_px = DEFAULT_STAMP_RADIUS_PX + blur_radius_px(sensor.optics, camera.pixel_pitch_m)
 
     def sphere(direction: np.ndarray, distance_m: float, radius_m: float):
-        return center_cam_m + direction * distance_m, radius_m
+        return center_cam_m + (R @ direction) * distance_m, radius_m
 
     spheres = [
         sphere(
@@ -82,7 +84,7 @@ def add_frame_stars(
     ]
     stars = stars_in_view(
         load_star_catalog(v_mag_limit),
-        track.R_cam_from_gcrs(index),
+        R @ track.R_cam_from_gcrs(index),
         camera,
         track.epoch_utc[index],
         track.camera_velocity_gcrs_m_s[index],
@@ -97,8 +99,8 @@ def add_frame_stars(
     for tau in offsets:
         moved = stars
         if tau != 0.0:
-            R = rotation_from_vector(-track.omega_cam_rad_s[index] * tau)
-            uv = camera.project(directions @ R.T)
+            turn = rotation_from_vector(-omega_cam_rad_s * tau)
+            uv = camera.project(directions @ turn.T)
             moved = dataclasses.replace(stars, x_px=uv[:, 0], y_px=uv[:, 1])
         star_photons_image(
             moved,

@@ -170,7 +170,8 @@ def run_ablation(
     (Sun light reflected by a glossy part into another) add Monte Carlo noise that grows
     the noise floor far above the model differences at affordable sample counts.
     """
-    from satsight.pipeline import build_target, frame_light, frame_seed, planned_frames
+    from satsight.frame_light import frame_light
+    from satsight.pipeline import build_target, frame_seed, planned_frames
 
     if samples_per_pixel < 1 or reference_samples_per_pixel < samples_per_pixel:
         raise SatsightError(

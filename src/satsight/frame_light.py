@@ -1,0 +1,114 @@
+"""The light at the target in one frame of a plan: the Sun (its in-band irradiance at the
+frame's distance), the Earth and the Moon as bodies and as the SH light field, in the
+target's body frame."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from satsight.config.scenario import Scenario
+from satsight.constants import EARTH_ALBEDO, MOON_ALBEDO, MOON_MEAN_RADIUS_M
+from satsight.ephemeris.earth_orientation import R_itrs_from_gcrs
+from satsight.ephemeris.time import parse_epoch_utc
+from satsight.frames.rigid import RigidTransform
+from satsight.lighting.bodies import environment_light_field
+from satsight.lighting.light_field import LightField
+from satsight.lighting.scene_bodies import earth_body, moon_body
+from satsight.lighting.solar_spectrum import irradiance_at_distance_w_m2
+from satsight.poses.track import PoseTrack
+
+
+def sun_irradiance_w_m2(scenario: Scenario, track: PoseTrack, index: int) -> float:
+    """The Sun's in-band irradiance (W m^-2) at the target in plan frame ``index``, before
+    the Earth's shadow: the scenario's ``sun`` value for hand-placed views; on an orbit, its
+    value at 1 AU scaled to the frame's Sun distance (inverse square)."""
+    if scenario.sampler is None:
+        return scenario.sun.in_band_irradiance_w_m2
+    at_1_au = scenario.sun.model_copy(update={"distance_au": 1.0}).in_band_irradiance_w_m2
+    return irradiance_at_distance_w_m2(at_1_au, track.sun_distance_m[index])
+
+
+def frame_light(
+    scenario: Scenario,
+    track: PoseTrack,
+    index: int,
+    cam_from_body: RigidTransform | None = None,
+    sun_direction_cam: np.ndarray | None = None,
+    irradiance_scale: float = 1.0,
+) -> LightField:
+    """The light at the target in frame ``index`` of the plan, in the body frame.
+
+    The Sun's in-band irradiance is the scenario's value at 1 AU scaled by the inverse square
+    of the frame's Sun distance; the Earth and the Moon are lit by all of it, the target by
+    its ``sunlit_fraction`` (partly or wholly in the Earth's shadow). Earthshine and moonshine
+    are included when the scenario has ``earth`` / ``moon`` sections: as SH coefficients and
+    as bodies in the scene (``SceneBody``; the Earth's fixed frame is the ITRS at the frame's
+    epoch, or the target's body frame when the scenario has no epoch).
+
+    A randomised frame (``satsight.frame_variation``) gives the target's pose in the plan's
+    camera frame (``cam_from_body``, turned by its attitude jitter), the Sun's direction in
+    that frame and a factor on the Sun's irradiance; defaults: the plan's.
+    """
+    cam_from_body = track.cam_from_body(index) if cam_from_body is None else cam_from_body
+    R_body_from_cam = cam_from_body.R_a_from_b.T
+    irradiance = sun_irradiance_w_m2(scenario, track, index) * irradiance_scale
+    if sun_direction_cam is None:
+        sun_direction_cam = track.sun_from_target_cam[index]
+    sun_body = R_body_from_cam @ sun_direction_cam
+    at_target = irradiance * float(track.sunlit_fraction[index])
+
+    def center_body(direction_cam: np.ndarray, distance_m: float) -> np.ndarray:
+        return R_body_from_cam @ (direction_cam * distance_m)
+
+    earth, moon = scenario.earth, scenario.moon
+    earth_center = (
+        None
+        if earth is None
+        else center_body(track.earth_from_target_cam[index], track.earth_distance_m[index])
+    )
+    moon_center = (
+        None
+        if moon is None
+        else center_body(track.moon_from_target_cam[index], track.moon_distance_m[index])
+    )
+    bodies = []
+    if earth is not None:
+        bodies.append(
+            earth_body(
+                earth_center,
+                R_body_from_cam @ _R_cam_from_earth_fixed(track, index),
+                earth.albedo,
+                sun_body,
+                irradiance,
+                albedo_map=earth.albedo_map(),
+                shape=earth.shape,
+            )
+        )
+    # The SH field (environment: sh, unshadowed) projects the same Earth the renderer
+    # traces: its shape, orientation and albedo map.
+    light = environment_light_field(
+        sun_body,
+        irradiance,
+        earth_center_from_target_m=earth_center,
+        earth_albedo=EARTH_ALBEDO if earth is None else earth.albedo,
+        moon_center_from_target_m=moon_center,
+        moon_albedo=MOON_ALBEDO if moon is None else moon.albedo,
+        l_max=scenario.render.sh_order,
+        sun_irradiance_at_target_w_m2=at_target,
+        earth=bodies[0] if bodies else None,
+    )
+    if moon is not None:
+        bodies.append(moon_body(moon_center, MOON_MEAN_RADIUS_M, moon.albedo, sun_body, irradiance))
+    return dataclasses.replace(light, bodies=tuple(bodies))
+
+
+def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:
+    """Rotation from the Earth's fixed frame (ITRS at the frame's epoch, skyfield's
+    precession-nutation and Earth rotation) to the camera frame; without an inertial
+    attitude (views given in the body frame) the target's body frame stands in for it."""
+    if not (track.has_sky and track.epoch_utc[index]):
+        return track.cam_from_body(index).R_a_from_b
+    R_itrs_from_gcrs_now = R_itrs_from_gcrs(parse_epoch_utc(track.epoch_utc[index]))[0]
+    return track.R_cam_from_gcrs(index) @ R_itrs_from_gcrs_now.T

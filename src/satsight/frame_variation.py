@@ -1,0 +1,153 @@
+"""One frame's domain randomisation in the pipeline: the scenario's ``randomize`` ranges,
+each frame's draws (``satsight.randomization``) and what they change.
+
+``FrameVariation`` is built once per scenario (None when nothing varies) and gives, for a
+frame: the varied scenario sections (Sun, Earth), the poses (the light follows the
+target's jitter; the render also takes the camera's roll), the renderer of the varied
+materials (a new ``Renderer`` shares the compiled kernels: ~0.1 s), the varied sensor
+chain, and the record written under the frame's ``randomized`` label.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from satsight.config.scenario import Scenario
+from satsight.frames.rigid import RigidTransform
+from satsight.randomization.apply import (
+    attitude_jitter_transform,
+    jittered_direction,
+    material_record,
+    pose_record,
+    roll_transform,
+    sensor_record,
+    varied_material,
+    varied_sensor,
+)
+from satsight.randomization.draws import FrameDraws, draw_frame, draw_record
+from satsight.randomization.ranges import RandomizationRanges
+from satsight.render.renderer import Renderer
+from satsight.scene.mesh import TargetMesh
+from satsight.sensor.chain import SensorChain
+
+
+@dataclass(frozen=True)
+class FramePoses:
+    """light_cam_from_body: the target's pose in the planned camera frame, turned by its
+    attitude jitter (what the light in the body frame is made from). cam_from_body: that
+    pose seen by the rolled camera (what is rendered and labelled). rolled_from_planned:
+    the camera's roll (planned camera frame -> rolled camera frame)."""
+
+    light_cam_from_body: RigidTransform
+    cam_from_body: RigidTransform
+    rolled_from_planned: RigidTransform
+
+
+class FrameVariation:
+    """The randomisation of one scenario's frames (module docstring)."""
+
+    def __init__(self, scenario: Scenario, mesh: TargetMesh, ranges: RandomizationRanges):
+        self.scenario = scenario
+        self.mesh = mesh
+        self.ranges = ranges
+        self._hand_placed = scenario.sampler is None
+        self._materials = sorted(set(mesh.part_materials))
+
+    @classmethod
+    def of(cls, scenario: Scenario, mesh: TargetMesh) -> FrameVariation | None:
+        ranges = scenario.randomize.build()
+        return None if ranges is None else cls(scenario, mesh, ranges)
+
+    def draw(self, plan_index: int) -> FrameDraws:
+        return draw_frame(
+            self.ranges, self.scenario.seed, plan_index, self._materials, self._hand_placed
+        )
+
+    # --- lighting -------------------------------------------------------------------------
+    def light_scenario(self, draws: FrameDraws) -> Scenario:
+        """The scenario with the frame's Earth (its surface, cloud pattern and a uniform
+        Earth's albedo) in place of the scenario's."""
+        earth = self.scenario.earth
+        if draws.earth is None or earth is None:
+            return self.scenario
+        d = draws.earth
+        albedo = earth.albedo
+        scaled = (
+            min(1.0, albedo * d.albedo_scale)
+            if isinstance(albedo, float | int)
+            else tuple(min(1.0, a * d.albedo_scale) for a in albedo)
+        )
+        varied = earth.model_copy(
+            update={
+                "albedo": scaled,
+                "surface": d.surface,
+                "cloud_seed": earth.cloud_seed + d.cloud_pattern,
+            }
+        )
+        return self.scenario.model_copy(update={"earth": varied})
+
+    @staticmethod
+    def irradiance_scale(draws: FrameDraws | None) -> float:
+        return 1.0 if draws is None or draws.sun is None else draws.sun.irradiance_scale
+
+    @staticmethod
+    def sun_direction_cam(direction_cam: np.ndarray, draws: FrameDraws | None) -> np.ndarray:
+        """The Sun's direction (planned camera frame) turned by the frame's jitter."""
+        if draws is None or draws.sun is None:
+            return np.asarray(direction_cam, dtype=np.float64)
+        return jittered_direction(direction_cam, draws.sun)
+
+    # --- pose -----------------------------------------------------------------------------
+    def poses(self, planned: RigidTransform, draws: FrameDraws | None) -> FramePoses:
+        """The frame's poses from the planned cam_from_body (``FramePoses``)."""
+        identity = RigidTransform.identity()
+        if draws is None or draws.pose is None:
+            return FramePoses(planned, planned, identity)
+        jittered = planned @ attitude_jitter_transform(draws.pose, self.mesh.center_m)
+        roll = roll_transform(draws.pose)
+        return FramePoses(jittered, roll @ jittered, roll)
+
+    # --- materials and sensor ---------------------------------------------------------------
+    def renderer(self, base: Renderer, draws: FrameDraws | None) -> Renderer:
+        """A renderer of the frame's materials, or ``base`` when materials do not vary."""
+        if draws is None or draws.materials is None:
+            return base
+        materials = dict(self.mesh.materials)
+        for name, draw in draws.materials.items():
+            materials[name] = varied_material(materials[name], draw)
+        mesh = dataclasses.replace(self.mesh, materials=materials)
+        return Renderer(mesh, base.settings, base.variant)
+
+    @staticmethod
+    def sensor(base: SensorChain, draws: FrameDraws | None) -> SensorChain:
+        if draws is None or draws.sensor is None:
+            return base
+        return varied_sensor(base, draws.sensor)
+
+    # --- labels -----------------------------------------------------------------------------
+    def record(self, draws: FrameDraws, sensor: SensorChain, poses: FramePoses) -> dict:
+        """The frame's ``randomized`` label: one entry per varying group, SI values."""
+        out: dict = {}
+        if draws.materials is not None:
+            out["materials"] = {
+                name: material_record(varied_material(self.mesh.materials[name], d), d)
+                for name, d in draws.materials.items()
+            }
+        if draws.sun is not None:
+            out["sun"] = draw_record(draws.sun)
+        if draws.earth is not None:
+            out["earth"] = {
+                **draw_record(draws.earth),
+                "applies": self.scenario.earth is not None,
+            }
+        if draws.sensor is not None:
+            out["sensor"] = sensor_record(sensor, draws.sensor)
+        if draws.pose is not None:
+            out["pose"] = {
+                **pose_record(draws.pose),
+                "q_rolled_cam_from_planned_cam": poses.rolled_from_planned.q_a_from_b.tolist(),
+            }
+        return out

@@ -1,0 +1,207 @@
+"""Domain randomisation end to end: every group varies from frame to frame and is written
+in the labels, the labels follow the drawn pose, the drawn sensor reaches the DN, and the
+same scenario gives the same bytes twice and on two Dask workers."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.ndimage import maximum_filter
+from scipy.spatial.transform import Rotation
+from scipy.stats import norm
+
+from dataset_files import file_hashes
+from satsight.config.scenario import parse_scenario
+from satsight.dataset.reader import open_dataset
+from satsight.dataset.stats import dataset_stats
+from satsight.frames.quaternion import matrix_from_quaternion
+from satsight.pipeline import FrameEngine
+from satsight.run.generation import generate_dataset
+
+FRAMES = 4
+SIZE_PX = (192, 144)
+GROUPS = ("materials", "sun", "earth", "sensor", "pose")
+
+
+def scenario_dict(exposure: dict | None = None) -> dict:
+    """Four views of the two-wing satellite at 20 km (about 20 px across on the wide-field
+    camera), every group randomised; a uniform Earth from GEO, out of view (its map is
+    tested elsewhere)."""
+    frames = [
+        {"distance_km": 20.0, "azimuth_deg": 35.0 * i, "elevation_deg": 10.0 * i - 15.0}
+        for i in range(FRAMES)
+    ]
+    camera = {"preset": "wide_field", "width_px": SIZE_PX[0], "height_px": SIZE_PX[1]}
+    if exposure is not None:
+        camera["exposure"] = exposure
+    return {
+        "name": "randomized",
+        "seed": 11,
+        "camera": camera,
+        "target": {"procedural": {"satellite_class": "two_wings", "seed": 1}},
+        "earth": {"elevation_deg": -80.0, "altitude_km": 36000.0, "surface": "uniform"},
+        "frames": frames,
+        "render": {"bounces": 1},
+        "randomize": {
+            "materials": True,
+            "sun": True,
+            "earth": {"surface_map_probability": 0.0},
+            "sensor": True,
+            "pose": True,
+        },
+    }
+
+
+@pytest.fixture(scope="module")
+def engine_records() -> tuple[FrameEngine, list[dict], list]:
+    engine = FrameEngine(parse_scenario(scenario_dict({"mode": "fixed", "time_s": 0.0005})))
+    records, images = [], []
+    for i in range(FRAMES):
+        record, arrays, _ = engine.finish(engine.render(i))
+        records.append(record)
+        images.append(arrays)
+    return engine, records, images
+
+
+def _numbers(record: dict, group: str) -> dict[str, float]:
+    values = record["randomized"][group]
+    if group == "materials":
+        return {
+            f"{m}.{k}": v for m, d in values.items() for k, v in d.items() if k != "base_color_rgb"
+        }
+    return {k: v for k, v in values.items() if isinstance(v, float)}
+
+
+def test_every_group_varies_from_frame_to_frame_and_is_recorded(engine_records) -> None:
+    engine, records, _ = engine_records
+    for record in records:
+        assert set(record["randomized"]) == set(GROUPS)
+        assert set(record["randomized"]["materials"]) == set(engine.mesh.part_materials)
+    for group in GROUPS:
+        names = _numbers(records[0], group)
+        assert names, group
+        for name in names:
+            values = [_numbers(r, group)[name] for r in records]
+            if not name.endswith(("roughness", "ior")) or "scale" in name or "shift" in name:
+                assert len(set(values)) == FRAMES, (group, name, values)
+
+
+def test_the_labels_follow_the_drawn_pose(engine_records) -> None:
+    """The labelled pose is the planned one with the target turned about its box centre
+    and the camera rolled about its boresight, built here with scipy's rotations."""
+    engine, records, _ = engine_records
+    c = engine.mesh.center_m
+    for i, record in enumerate(records):
+        planned = engine.track.cam_from_body(int(engine.plan_indices[i]))
+        pose = record["randomized"]["pose"]
+        jitter = Rotation.from_rotvec(
+            np.asarray(pose["jitter_axis_body"]) * pose["attitude_jitter_rad"]
+        ).as_matrix()
+        roll = Rotation.from_rotvec([0.0, 0.0, -pose["roll_rad"]]).as_matrix()
+        R = roll @ planned.R_a_from_b @ jitter
+        t = roll @ (planned.R_a_from_b @ (c - jitter @ c) + planned.t_a_from_b_m)
+        np.testing.assert_allclose(
+            matrix_from_quaternion(np.asarray(record["q_cam_from_body"])), R, atol=1e-12
+        )
+        np.testing.assert_allclose(record["t_cam_from_body_m"], t, rtol=0, atol=1e-9)
+        # The box centre stays on the boresight (the views look at it).
+        np.testing.assert_allclose(record["box_keypoints_px"][-1][:2], [
+            (SIZE_PX[0] - 1) / 2, (SIZE_PX[1] - 1) / 2], atol=1e-6)  # fmt: skip
+        # The Sun keeps its place in the sky while the target turns under it and the
+        # camera rolls: in the plan's camera frame it is the plan's direction turned by the
+        # drawn jitter angle alone.
+        sun_planned_cam = roll.T @ np.asarray(record["sun_direction_cam"])
+        planned_sun = engine.track.sun_from_target_cam[int(engine.plan_indices[i])]
+        angle = math.atan2(
+            np.linalg.norm(np.cross(sun_planned_cam, planned_sun)), sun_planned_cam @ planned_sun
+        )
+        assert angle == pytest.approx(record["randomized"]["sun"]["direction_jitter_rad"], abs=1e-9)
+        np.testing.assert_allclose(
+            R @ np.asarray(record["sun_direction_body"]), record["sun_direction_cam"], atol=1e-9
+        )
+
+
+def test_the_drawn_sensor_reaches_the_dn(engine_records) -> None:
+    """Fixed exposure: the time is 0.5 ms x the drawn factor; the empty sky is bias plus
+    the drawn read noise over the drawn gain, rounded to whole DN, within its sampling
+    error."""
+    engine, records, images = engine_records
+    bias = engine.sensor.detector.bias_dn
+    for record, arrays in zip(records, images, strict=True):
+        drawn = record["randomized"]["sensor"]
+        assert record["sensor"]["exposure_time_s"] == pytest.approx(
+            0.0005 * drawn["exposure_factor"], rel=1e-14
+        )
+        dn = arrays.dn_image.dn.astype(np.float64)
+        lit = arrays.image.radiance_w_m2_sr.max(axis=2) > 0
+        # Beyond the blur's reach: the frame kernel's 20 px plus the drawn defocus (<= 1 px)
+        # and jitter (<= 0.4 px at 4 sigma), with room to spare; not in a column with a
+        # saturated pixel (blooming spills along columns).
+        full = dn >= bias + 0.97 * (arrays.dn_image.full_well_dn - bias)
+        sky = dn[~maximum_filter(lit, size=81) & ~full.any(axis=0)[None, :]]
+        assert sky.size > 10000
+        sigma = _rounded_gaussian_std_dn(drawn["read_noise_e"] / drawn["conversion_gain_e_per_dn"])
+        # The sample standard deviation's standard error is sigma / sqrt(2 n).
+        assert sky.std() == pytest.approx(sigma, rel=5 / math.sqrt(2 * sky.size))
+        assert abs(sky.mean() - bias) < 5 * sigma / math.sqrt(sky.size)
+
+
+def _rounded_gaussian_std_dn(sigma_dn: float) -> float:
+    """Standard deviation of round(x), x normal with mean 0 (the bias is whole) and
+    ``sigma_dn``: the exact sum over the DN values, not Sheppard's sqrt(s^2 + 1/12), which
+    is 2 % off at s = 0.47 DN."""
+    k = np.arange(-60, 61)
+    p = norm.cdf((k + 0.5) / sigma_dn) - norm.cdf((k - 0.5) / sigma_dn)
+    return float(math.sqrt(np.sum(p * k**2)))
+
+
+def test_the_sun_irradiance_label_follows_the_drawn_scale(engine_records) -> None:
+    engine, records, _ = engine_records
+    base = engine.scenario.sun.in_band_irradiance_w_m2
+    for record in records:
+        scale = record["randomized"]["sun"]["irradiance_scale"]
+        assert record["sun_irradiance_w_m2"] == pytest.approx(base * scale, rel=1e-12)
+        assert 0.0 < record["randomized"]["sun"]["direction_jitter_rad"] <= math.radians(5.0)
+
+
+@pytest.fixture(scope="module")
+def randomized_dataset(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("randomized") / "dataset"
+    return generate_dataset(parse_scenario(scenario_dict()), out).out_dir
+
+
+def test_the_same_scenario_gives_the_same_bytes_twice_and_on_two_workers(
+    randomized_dataset: Path, tmp_path: Path
+) -> None:
+    scenario = parse_scenario(scenario_dict())
+    first = file_hashes(randomized_dataset)
+    assert file_hashes(generate_dataset(scenario, tmp_path / "b").out_dir) == first
+    assert file_hashes(generate_dataset(scenario, tmp_path / "c", workers=2).out_dir) == first
+
+
+def test_stats_histogram_every_drawn_value(randomized_dataset: Path) -> None:
+    """One histogram per randomised number, each counting every frame (each material's
+    draws pooled over the materials), with the labels' own extremes."""
+    stats = dataset_stats(open_dataset(randomized_dataset))
+    histograms = stats["histograms"]
+    journal = (randomized_dataset / "journal.jsonl").read_text(encoding="utf-8")
+    frames = [json.loads(line) for line in journal.splitlines()]
+    materials = len(frames[0]["randomized"]["materials"])
+    for group in GROUPS:
+        for key in ("exposure_factor", "roll_rad", "irradiance_scale", "albedo_scale"):
+            name = f"randomized.{group}.{key}"
+            if name in histograms:
+                values = [f["randomized"][group][key] for f in frames]
+                assert sum(histograms[name]["counts"]) == FRAMES
+                assert histograms[name]["min"] == min(values)
+                assert histograms[name]["max"] == max(values)
+                assert histograms[name]["missing"] == 0
+    assert {"randomized.sensor.exposure_factor", "randomized.pose.roll_rad"} <= set(histograms)
+    pooled = histograms["randomized.materials.roughness_scale"]
+    assert sum(pooled["counts"]) == FRAMES * materials
+    assert histograms["randomized.pose.roll_rad"]["unit"] == "rad"
+    assert histograms["randomized.sensor.read_noise_e"]["unit"] == "e-"
