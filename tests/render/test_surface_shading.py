@@ -320,6 +320,94 @@ def test_far_textured_plate_shows_the_texture_mean(llvm_variant):
     np.testing.assert_allclose(inner, np.broadcast_to(mean, inner.shape), rtol=0.02)
 
 
+def _plate_hits_at(camera: PinholeCamera, pose, offsets_px: np.ndarray):
+    """Body-frame hit points on the plane z = 0 of the rays through every pixel centre
+    shifted by each of ``offsets_px`` ((K, 2), px): shape (H * W, K, 3); and which pixels
+    have all K hits on the 2 m plate."""
+    h, w = camera.height_px, camera.width_px
+    v, u = np.mgrid[0:h, 0:w]
+    centres = np.stack([u, v], -1).reshape(-1, 1, 2).astype(float)
+    positions = (centres + offsets_px[None]).reshape(-1, 2)
+    body_from_cam = pose.inverse()
+    d = body_from_cam.rotate(camera.ray_directions_cam(positions))
+    o = body_from_cam.t_a_from_b_m
+    p = o + (-o[2] / d[:, 2])[:, None] * d
+    p = p.reshape(h * w, len(offsets_px), 3)
+    on = np.all(np.abs(p[..., :2]) < 1.0 - 1e-3, axis=(1, 2))
+    return p, on
+
+
+# The plate of ``textured_plate`` with 16 tiles (texels of 3.1 cm x 4.2 cm) seen from 1 km
+# through a 0.6 m lens: 2.5 cm pixels, so every lookup is still in the full-size level
+# (magnification) and the texture changes across a pixel by up to a texel step.
+SUBPIXEL_TILES = 16.0
+SUBPIXEL_CAMERA = PinholeCamera(0.6, 15e-6, 64, 64)
+SUBPIXEL_POSE = look_at_cam_from_body(
+    DISTANCE_M * np.array([0.1, -0.05, 1.0]), np.zeros(3), up_hint_body=np.array([0, 1.0, 0])
+)
+SUBPIXEL_SUN = LightField.sun_only(np.array([0.0, 0.0, 1.0]), E_W_M2)
+
+
+@pytest.mark.parametrize("supersampling", [2, 4])
+def test_supersampled_pixels_average_the_texture_at_their_strata_centres(
+    llvm_variant, supersampling
+):
+    """With ``supersampling`` s and one path per stratum a pixel is the mean of the s x s
+    stratum centres (x + (k + 0.5) / s - 0.5, same in y), each the bilinear texture there."""
+    s = supersampling
+    mesh = textured_plate("repeat", tiles=SUBPIXEL_TILES)
+    settings = DIRECT_SUN_ONLY.with_(supersampling=s, integrate_footprint=False)
+    image = Renderer(mesh, settings, llvm_variant).render(
+        SUBPIXEL_CAMERA, SUBPIXEL_POSE, SUBPIXEL_SUN
+    )
+    centres = (np.arange(s) + 0.5) / s - 0.5
+    offsets = np.stack(np.meshgrid(centres, centres), -1).reshape(-1, 2)
+    p, on = _plate_hits_at(SUBPIXEL_CAMERA, SUBPIXEL_POSE, offsets)
+    uv = (p[on, :, :2] + 1.0) / 2.0 * SUBPIXEL_TILES
+    texture = reference_texture(TEXTURE, uv.reshape(-1, 2), "repeat").reshape(*uv.shape[:2], 3)
+    expected = texture.mean(axis=1) * E_W_M2 / math.pi
+    measured = image.radiance_w_m2_sr.reshape(-1, 3)[on]
+    assert on.sum() > 3000
+    # The texture's steps within a pixel (some % of the texel contrast) are far above
+    # float32 shading error: a wrong stratum position shows.
+    scale = E_W_M2 / math.pi
+    np.testing.assert_allclose(measured, expected, rtol=FLOAT32_REL, atol=FLOAT32_REL * scale)
+
+
+def test_jittered_paths_average_the_texture_over_the_pixel_area(llvm_variant):
+    """With several paths per pixel their sub-pixel positions spread over the pixel (the
+    low-discrepancy sequence with a random shift per pixel): the pixel tends to the
+    texture's mean over the pixel's area, here a 32 x 32 midpoint rule."""
+    spp = 64
+    mesh = textured_plate("repeat", tiles=SUBPIXEL_TILES)
+    settings = DIRECT_SUN_ONLY.with_(samples_per_pixel=spp, integrate_footprint=False)
+    image = Renderer(mesh, settings, llvm_variant).render(
+        SUBPIXEL_CAMERA, SUBPIXEL_POSE, SUBPIXEL_SUN
+    )
+    grid = (np.arange(32) + 0.5) / 32 - 0.5
+    offsets = np.stack(np.meshgrid(grid, grid), -1).reshape(-1, 2)
+    p, on = _plate_hits_at(SUBPIXEL_CAMERA, SUBPIXEL_POSE, offsets)
+    uv = (p[on, :, :2] + 1.0) / 2.0 * SUBPIXEL_TILES
+    texture = reference_texture(TEXTURE, uv.reshape(-1, 2), "repeat").reshape(*uv.shape[:2], 3)
+    expected = texture.mean(axis=1) * E_W_M2 / math.pi
+    spread = texture.std(axis=1) * E_W_M2 / math.pi
+    measured = image.radiance_w_m2_sr.reshape(-1, 3)[on]
+    assert on.sum() > 3000
+    # Independent uniform positions would leave a standard error spread / sqrt(spp) per
+    # pixel; the stratified sequence does better, so 4 of those bound every pixel. Pixels
+    # across a texel step (spread > 0) are where a pixel-centre sample would be off by up
+    # to half the step: they must have moved to the area mean.
+    bound = 4.0 * spread / math.sqrt(spp) + FLOAT32_REL * E_W_M2 / math.pi
+    assert np.all(np.abs(measured - expected) <= bound)
+    steps = spread.max(axis=1) > 0.05 * E_W_M2 / math.pi
+    assert steps.sum() > 50
+    p_centre, _ = _plate_hits_at(SUBPIXEL_CAMERA, SUBPIXEL_POSE, np.zeros((1, 2)))
+    uv_centre = (p_centre[on, 0, :2] + 1.0) / 2.0 * SUBPIXEL_TILES
+    centre = reference_texture(TEXTURE, uv_centre, "repeat") * E_W_M2 / math.pi
+    centre_error = np.abs(centre - expected)[steps]
+    assert np.abs(measured - expected)[steps].mean() < 0.25 * centre_error.mean()
+
+
 def test_loaded_obj_plate_renders_its_map_kd(llvm_variant, tmp_path: Path):
     """OBJ + MTL + PNG: the loaded plate's radiance is Kd x map_Kd x E cos / pi."""
     Image.fromarray(TEXTURE).save(tmp_path / "paint.png")
