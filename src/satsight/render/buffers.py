@@ -38,6 +38,9 @@ class RadianceImage:
     background_id: (H, W) uint8 body seen behind the target (see ``background_mask``),
     None when no body is in view. footprint: the label of the fine grid whose integral
     replaced the pixels of a small target (``satsight.render.footprint``), None without.
+    target_part_count: the parts 1..P of ``part_id`` that are the target when the rendered
+    mesh also holds other objects (their parts numbered after it); 0: every part is the
+    target's.
     """
 
     radiance_w_m2_sr: np.ndarray
@@ -48,6 +51,7 @@ class RadianceImage:
     margin_radiance_w_m2_sr: np.ndarray | None = None
     background_id: np.ndarray | None = None
     footprint: dict | None = None
+    target_part_count: int = 0
 
     def background_mask(self) -> np.ndarray:
         """(H, W) uint8: what a pixel-centre ray that misses the target meets: 0 space,
@@ -71,7 +75,10 @@ class RadianceImage:
 
     @property
     def object_mask(self) -> np.ndarray:
-        """(H, W) bool: True where a ray from the pixel centre hits the target."""
+        """(H, W) bool: True where a ray from the pixel centre hits the target (not another
+        object of the scene)."""
+        if self.target_part_count > 0:
+            return (self.part_id > 0) & (self.part_id <= self.target_part_count)
         return self.part_id > 0
 
     @property
