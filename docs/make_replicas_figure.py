@@ -1,5 +1,5 @@
-"""Render the six replicas at 1 km, sunlit, and tile their previews into
-docs/images/replicas.png (run: .venv/bin/python docs/make_replicas_figure.py)."""
+"""Render the six replicas at 1 km, sunlit, and tile their radiance (in colour, scaled
+per tile) into docs/images/replicas.png (run: .venv/bin/python docs/make_replicas_figure.py)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from satsight.config.scenario import parse_scenario
-from satsight.dataset.image_files import read_png
+from satsight.dataset.image_files import read_exr
 from satsight.run.generation import generate_dataset
 from satsight.scene.procedural import generate_satellite
 from satsight.scene.replicas import REPLICA_CLASSES
@@ -44,7 +44,16 @@ def render(name: str, folder: Path) -> np.ndarray:
     out = folder / name
     generate_dataset(parse_scenario(scenario), out)
     frame = json.loads((out / "labels.json").read_text(encoding="utf-8"))["frames"][0]
-    return read_png(out / frame["files"]["preview_png8"])
+    return _display(read_exr(out / frame["files"]["radiance_exr"])["RGB"])
+
+
+def _display(radiance_rgb: np.ndarray) -> np.ndarray:
+    """8-bit sRGB-like colour of a radiance image: scaled so that the 99.5th percentile of
+    the lit pixels is white, then a 1/2.2 gamma (a picture, not a measurement)."""
+    lit = radiance_rgb.max(axis=2)
+    white = float(np.percentile(lit[lit > 0], 99.5)) if np.any(lit > 0) else 1.0
+    shown = np.clip(radiance_rgb / white, 0.0, 1.0) ** (1 / 2.2)
+    return np.round(255 * shown).astype(np.uint8)
 
 
 def main(path: Path) -> None:
