@@ -7,17 +7,19 @@ runs it over a dataset and writes the files.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.camera import CameraConfig
+from satsight.config.objects import build_scene
 from satsight.config.scenario import Scenario, TargetConfig
 from satsight.constants import DEFAULT_BAND_NM
-from satsight.dataset.frame_files import FrameArrays
+from satsight.dataset.frame_files import OBJECT_FILE_KEYS, FrameArrays
 from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
+from satsight.dataset.object_labels import object_records, target_occlusion
 from satsight.errors import SatsightError
 from satsight.frame_light import frame_light, sun_irradiance_w_m2
 from satsight.frame_memory import check_frame_memory
@@ -41,6 +43,7 @@ from satsight.scene.loading import load_mesh
 from satsight.scene.material_library import LIBRARY_PREFIX
 from satsight.scene.materials import FIRST_MATERIALS
 from satsight.scene.mesh import TargetMesh
+from satsight.scene.objects import objects_only
 from satsight.scene.procedural import generate_satellite
 from satsight.sensor.chain import DnImage, SensorChain, exposure_regions
 from satsight.sensor.frame_stars import add_frame_stars
@@ -203,6 +206,9 @@ class FrameEngine:
         check_frame_memory(camera.width_px, camera.height_px)  # before the mesh and renderer
         self.scenario = scenario
         self.mesh = build_target(scenario.target, scenario.sun.band_nm)
+        band = scenario.sun.band_nm  # other objects, merged after the target's parts:
+        self.scene = build_scene(scenario.objects, self.mesh, band, lambda c: build_target(c, band))
+        self._label_renderers: tuple[Renderer, Renderer] | None = None
         self.keypoints_body_m = target_keypoints_body_m(
             self.mesh, scenario.target.keypoints.build()
         )
@@ -235,8 +241,9 @@ class FrameEngine:
     @property
     def renderer(self) -> Renderer:
         if self._renderer is None:
+            mesh = self.mesh if self.scene is None else self.scene.mesh
             self._renderer = Renderer(
-                self.mesh, self.scenario.render.settings(), self.scenario.render.variant
+                mesh, self.scenario.render.settings(), self.scenario.render.variant
             )
         return self._renderer
 
@@ -273,7 +280,10 @@ class FrameEngine:
         def render(pose: RigidTransform, light: LightField, seed: int) -> RadianceImage:
             if variation is not None:  # the planned pose, rolled and jittered
                 pose = variation.poses(pose, draws).cam_from_body
-            return renderer.render(camera, pose, light, seed, sensor.margin_px)
+            image = renderer.render(camera, pose, light, seed, sensor.margin_px)
+            if self.scene is None:
+                return image
+            return replace(image, target_part_count=self.scene.target_part_count)
 
         planned = self.track.cam_from_body(plan_index)
         light = light_at(self.track, plan_index)
@@ -378,7 +388,42 @@ class FrameEngine:
             center_px = labels["box_keypoints_px"][-1]
             box = crop_window_xyxy_px(center_px, crop.size_px, frame.image.shape)
             record["crop"] = crop_labels(labels, frame.image.object_mask, box)
-        return record, FrameArrays(frame.image, dn_image), box
+        if self.scene is None:
+            return record, FrameArrays(frame.image, dn_image), box
+        object_id, amodal = self.object_masks(frame, camera, record)
+        return record, FrameArrays(frame.image, dn_image, object_id, amodal), box
+
+    def object_masks(
+        self, frame: RenderedFrame, camera: PinholeCamera, record: dict
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The object ids and the target's amodal mask of a frame whose scene holds
+        objects (``satsight.dataset.object_labels``), from labels-only renders of the target
+        alone and of the objects alone (direct light, one sample, no footprint); the
+        target's ``occlusion`` and the ``objects`` records are added to ``record``."""
+        scene = self.scene
+        if self._label_renderers is None:
+            settings = replace(
+                self.scenario.render.settings(),
+                bounces=0, samples_per_pixel=1, supersampling=1, integrate_footprint=False,
+                environment="off",
+            )  # fmt: skip
+            variant = self.scenario.render.variant
+            self._label_renderers = (
+                Renderer(self.mesh, settings, variant),
+                Renderer(objects_only(scene), settings, variant),
+            )
+        alone, objects = (
+            r.render(camera, frame.cam_from_body, frame.light).part_id
+            for r in self._label_renderers
+        )
+        object_id = scene.object_id(frame.image.part_id)
+        amodal = alone > 0
+        record["occlusion"] = target_occlusion(object_id, amodal)
+        poses = [frame.cam_from_body @ pose for pose in scene.target_from_object]
+        record["objects"] = object_records(
+            scene.object_names, poses, object_id, scene.object_id(objects)
+        )
+        return object_id, amodal
 
     def sun_irradiance_at_camera(self, plan_index: int) -> tuple[float, float]:
         """The Sun's in-band irradiance (W m^-2) at plan frame ``plan_index`` before the
@@ -386,6 +431,14 @@ class FrameEngine:
         and the Sun's distance (m)."""
         sun_distance_m = float(self.track.sun_distance_m[plan_index])
         return float(sun_irradiance_w_m2(self.scenario, self.track, plan_index)), sun_distance_m
+
+    def file_keys(self) -> tuple[str, ...]:
+        """The file keys of every frame: the outputs', and with objects in the scene the
+        object-id and amodal masks beside the object mask."""
+        keys = self.scenario.outputs.file_keys()
+        if self.scene is not None and "object_mask_png" in keys:
+            keys += OBJECT_FILE_KEYS
+        return keys
 
     def header(self) -> dict:
         """The dataset's description: everything labels.json holds besides its frames."""
@@ -407,7 +460,7 @@ class FrameEngine:
             plan_indices=self.plan_indices,
             render_variant=render_variant,
             outputs=scenario.outputs.model_dump(mode="json"),
-            file_keys=scenario.outputs.file_keys(),
+            file_keys=self.file_keys(),
             camera=self.camera,
             sensor=self.sensor,
             sun_spectrum=scenario.sun.spectrum,

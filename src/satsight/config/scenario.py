@@ -18,13 +18,16 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    SerializerFunctionWrapHandler,
     ValidationError,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
 from satsight.config.camera import CameraConfig
 from satsight.config.lighting import EarthConfig, MoonConfig, SunConfig
+from satsight.config.objects import ObjectConfig, unique_object_names
 from satsight.config.orbital import (
     ABSOLUTE_TRAJECTORY_MODES,
     TRAJECTORY_KEYS,
@@ -251,6 +254,20 @@ class Scenario(_Strict):
     stars: StarsConfig = StarsConfig()
     outputs: OutputsConfig = OutputsConfig()
     randomize: RandomizeConfig = RandomizeConfig()
+    objects: list[ObjectConfig] = Field(default_factory=list)
+
+    @field_validator("objects")
+    @classmethod
+    def _object_names(cls, value: list[ObjectConfig]) -> list[ObjectConfig]:
+        return unique_object_names(value)
+
+    @model_serializer(mode="wrap")
+    def _without_empty_objects(self, handler: SerializerFunctionWrapHandler) -> dict:
+        # A scenario without objects dumps (and hashes) as it did before they existed.
+        data = handler(self)
+        if not self.objects and isinstance(data, dict):
+            data.pop("objects", None)
+        return data
 
     @model_validator(mode="after")
     def _crop_fits(self) -> Scenario:
@@ -439,4 +456,7 @@ def load_scenario(path: str | Path) -> Scenario:
     target = scenario.target.with_paths_from(path.parent)
     if target is not scenario.target:
         scenario = scenario.model_copy(update={"target": target})
+    objects = [o.with_paths_from(path.parent) for o in scenario.objects]
+    if any(a is not b for a, b in zip(objects, scenario.objects, strict=True)):
+        scenario = scenario.model_copy(update={"objects": objects})
     return scenario

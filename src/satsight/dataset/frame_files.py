@@ -10,6 +10,9 @@ Layout (frame index k as six digits; see docs/dataset_format.md)::
     masks/frame_k_object.png    8-bit object mask (255 = target)
     masks/frame_k_parts.png     16-bit part ids (0 = background, part index + 1)
     masks/frame_k_background.png  8-bit body behind the target (0 space, 1 Earth, 2 Moon)
+    masks/frame_k_object_ids.png  8-bit object ids (0 background, 1 target, 2.. objects), and
+    masks/frame_k_amodal.png      8-bit amodal target mask (255: its whole silhouette),
+                                  both only when the scene holds objects besides the target
     crop/<same folders>/...     the same files cut to the crop window, when asked for
 
 Files are only ever renamed into place whole, so a reader never sees a half-written file.
@@ -42,7 +45,11 @@ FILE_LAYOUT: dict[str, tuple[str, str]] = {
     "object_mask_png": ("masks", "_object.png"),
     "part_mask_png16": ("masks", "_parts.png"),
     "background_mask_png": ("masks", "_background.png"),
+    "object_id_png": ("masks", "_object_ids.png"),
+    "amodal_mask_png": ("masks", "_amodal.png"),
 }
+#: Files written beside the object mask when the scene holds other objects.
+OBJECT_FILE_KEYS = ("object_id_png", "amodal_mask_png")
 CROP_FOLDER = "crop"
 
 
@@ -59,10 +66,14 @@ def relative_path(key: str, index: int, crop: bool = False) -> str:
 
 @dataclass(frozen=True)
 class FrameArrays:
-    """What a frame's files are made of: the render's images and the detector's readout."""
+    """What a frame's files are made of: the render's images and the detector's readout;
+    with other objects in the scene, the object ids (H, W) uint8 and the target's amodal
+    mask (H, W) bool (``satsight.dataset.object_labels``)."""
 
     image: RadianceImage
     dn_image: DnImage
+    object_id: np.ndarray | None = None
+    amodal_mask: np.ndarray | None = None
 
     def window(self, box: tuple[int, int, int, int] | None) -> FrameArrays:
         """The same arrays cut to ``box`` = (x0, y0, x1, y1), exclusive ends (None: all)."""
@@ -78,6 +89,7 @@ class FrameArrays:
                 image.part_id[cut],
                 image.normals_cam[cut],
                 background_id=None if image.background_id is None else image.background_id[cut],
+                target_part_count=image.target_part_count,
             ),
             DnImage(
                 dn.dn[cut],
@@ -87,6 +99,8 @@ class FrameArrays:
                 dn.bias_dn,
                 dn.full_well_dn,
             ),
+            None if self.object_id is None else self.object_id[cut],
+            None if self.amodal_mask is None else self.amodal_mask[cut],
         )
 
 
@@ -104,6 +118,10 @@ def _png_bytes(key: str, arrays: FrameArrays, preview: PreviewStretch) -> bytes:
         return encode_png(np.ascontiguousarray(image.part_id))
     if key == "background_mask_png":
         return encode_png(np.ascontiguousarray(image.background_mask()))
+    if key == "object_id_png":
+        return encode_png(np.ascontiguousarray(arrays.object_id, dtype=np.uint8))
+    if key == "amodal_mask_png":
+        return encode_png(arrays.amodal_mask.astype(np.uint8) * np.uint8(255))
     raise KeyError(key)
 
 
@@ -163,8 +181,12 @@ def write_frame_files(
     for no crop. full_frame: whether to write the full frame's files. submit: an executor
     to encode the files in parallel (their encoders release the GIL), or None for serial.
     preview: the 8-bit previews' stretch (None: the default, ``PreviewStretch()``).
+    With objects in the scene (``arrays.object_id``), the masks come with
+    ``OBJECT_FILE_KEYS``.
     """
     preview = PreviewStretch() if preview is None else preview
+    if arrays.object_id is not None and "object_mask_png" in keys:
+        keys = tuple(keys) + tuple(k for k in OBJECT_FILE_KEYS if k not in keys)
     jobs: list[tuple[str, str, bool]] = []
     if full_frame:
         jobs += [(key, relative_path(key, index), False) for key in keys]
