@@ -7,6 +7,7 @@ Output names and what they hold:
 - ``object_mask_png``: uint8 (H, W), values 0 and 255 only.
 - ``part_mask_png16``: uint16 (H, W) part ids.
 - ``background_mask_png``: uint8 (H, W), 0 space, 1 the Earth, 2 the Moon.
+- ``object_id_png``: uint8 (H, W) object ids; ``amodal_mask_png``: uint8, 0 and 255 only.
 - ``radiance_exr``: float32 R, G, B, each (H, W), W m^-2 sr^-1, finite and >= 0.
 - ``depth_exr``: float32 Z (H, W), metres, finite and >= 0.
 - ``normals_exr``: float32 X, Y, Z, each pixel a unit vector or exactly zero.
@@ -32,6 +33,8 @@ PNG_TYPES = {
     "object_mask_png": np.uint8,
     "part_mask_png16": np.uint16,
     "background_mask_png": np.uint8,
+    "object_id_png": np.uint8,
+    "amodal_mask_png": np.uint8,
 }
 EXR_CHANNELS = {
     "radiance_exr": ("R", "G", "B"),
@@ -77,7 +80,7 @@ def _finite_non_negative(planes: list[np.ndarray]) -> np.ndarray | None:
 def _bad_values(key: str, planes: list[np.ndarray]) -> tuple[np.ndarray | None, str] | None:
     """(H, W) pixels breaking the value rule of output ``key`` (None: no pixel does), and the
     rule; None when the output has no value rule."""
-    if key == "object_mask_png":
+    if key in ("object_mask_png", "amodal_mask_png"):
         # 0 and 255 are exactly the values that wrap to 1 and 0 when one is added.
         bad = (planes[0] + np.uint8(1)) > 1
         return (bad if bad.any() else None), "values 0 and 255 only"

@@ -27,6 +27,7 @@ import numpy as np
 
 from satsight.dataset.file_checks import read_frame_file
 from satsight.dataset.labels import keypoints_visible, mask_bbox_xyxy_px
+from satsight.dataset.object_checks import check_object_masks
 from satsight.dataset.problems import Findings
 from satsight.frames.quaternion import matrix_from_quaternion
 
@@ -37,7 +38,10 @@ DEPTH_RTOL = 1e-5
 DEPTH_ATOL_M = 1e-3
 BBOX_MARGIN_PX = 1.0
 # Images compared with the labels after decoding; the others are checked and dropped.
-KEPT_IMAGES = ("object_mask_png", "part_mask_png16", "depth_exr", "background_mask_png")
+KEPT_IMAGES = (
+    "object_mask_png", "part_mask_png16", "depth_exr", "background_mask_png",
+    "object_id_png", "amodal_mask_png",
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -94,6 +98,7 @@ class FrameCheck:
             self.findings.ran("masks")
             mask_file = self.frame["files"]["object_mask_png"]
             self.check_mask_counts(images["object_mask_png"] == 255, self.frame, mask_file, "masks")
+        check_object_masks(self.frame, images, self.problem)
         if points_cam is not None:
             self.check_pose_against_images(images, points_cam)
         if keypoints_cam is not None:
@@ -290,16 +295,18 @@ class FrameCheck:
                 f"{labels['bbox_xyxy_px']}",
                 files["object_mask_png"],
             )
+        ids = images.get("object_id_png")  # with other objects: any object's pixels
+        scene = on if ids is None or ids.shape != on.shape else ids > 0
         for key, what in (("part_mask_png16", "part id"), ("depth_exr", "depth")):
             image = images.get(key)
             if image is None or image.shape != on.shape:
                 continue
-            differ = (image > 0) != on
+            differ = (image > 0) != scene
             if differ.any():
                 y, x = np.argwhere(differ)[0]
                 self.problem(
                     check,
-                    f"expected {what} > 0 exactly where the object mask is, "
+                    f"expected {what} > 0 exactly where the object mask (or object ids) is, "
                     f"found {int(differ.sum())} pixel(s) where they differ, the first "
                     f"at (x={x}, y={y})",
                     files[key],
@@ -365,6 +372,8 @@ class FrameCheck:
         z_near, z_far = float(corners[:, 2].min()), float(corners[:, 2].max())
         slack = DEPTH_RTOL * z_far + DEPTH_ATOL_M
         mask, depth = images.get("object_mask_png"), images.get("depth_exr")
+        if mask is not None and depth is not None and mask.shape == depth.shape:
+            depth = np.where(mask == 255, depth, 0)  # the target's pixels only
         if depth is not None and (depth > 0).any():
             seen = depth[depth > 0]
             low, high = float(seen.min()), float(seen.max())
