@@ -11,12 +11,18 @@ A scenario without objects dumps as before (no ``objects`` key).
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from satsight.config.scenario import parse_scenario
+from satsight.dataset.export import export_dataset
+from satsight.dataset.export.splits import SplitRule
+from satsight.dataset.image_files import read_png
 from satsight.frames.quaternion import quaternion_from_axis_angle
 from satsight.pipeline import FrameEngine
+from satsight.run.generation import generate_dataset
 
 SIZE_PX = 96
 PLATE_SIDE_M = 2.0
@@ -150,3 +156,40 @@ def test_a_scenario_without_objects_dumps_without_the_key() -> None:
         {**BASE, "objects": [{"name": "d", "debris": {"count": 3}}]}, "test"
     )
     assert with_plate.model_dump(mode="json")["objects"][0]["debris"]["count"] == 3
+
+
+def _bop_export(scenario, folder) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+    """A one-frame dataset of ``scenario`` exported to BOP: the frame's record, its BOP
+    ``mask`` and ``mask_visib`` and its scene_gt_info entry."""
+    dataset = folder / "dataset"
+    assert generate_dataset(scenario, dataset).complete
+    record = json.loads((dataset / "labels.json").read_text(encoding="utf-8"))["frames"][0]
+    export_dataset(dataset, folder / "bop", "bop", SplitRule((1.0, 0.0, 0.0), seed=0))
+    scene = folder / "bop" / "train" / "000000"
+    mask = read_png(scene / "mask" / "000000_000000.png") > 0
+    visib = read_png(scene / "mask_visib" / "000000_000000.png") > 0
+    (info,) = json.loads((scene / "scene_gt_info.json").read_text(encoding="utf-8"))["0"]
+    return record, mask, visib, info
+
+
+def test_the_bop_export_keeps_the_amodal_and_the_visible_mask(plain, tmp_path) -> None:
+    """A plate partly hides the target: BOP's ``mask`` is the amodal mask, which is the
+    whole frame's mask of the same scene without the plate, ``mask_visib`` the visible
+    pixels, and ``visib_fract`` their ratio, the silhouette cut off by the image border
+    counted in both scenes alike."""
+    engine, frame = plain
+    center = engine.mesh.center_m
+    camera_body = frame.cam_from_body.inverse().t_a_from_b_m
+    to_camera = (camera_body - center) / np.linalg.norm(camera_body - center)
+    occluded = _with_plate(tmp_path, center + np.array([0.0, 0.5, 0.3]), to_camera, 12.0)
+    record, mask, visib, info = _bop_export(occluded.scenario, tmp_path / "plate")
+    _, bare_mask, bare_visib, bare_info = _bop_export(engine.scenario, tmp_path / "bare")
+    occlusion = record["occlusion"]
+    assert np.array_equal(mask, bare_mask) and np.array_equal(bare_mask, bare_visib)
+    assert mask.sum() == occlusion["amodal_pixel_count"]
+    assert visib.sum() == occlusion["visible_pixel_count"] == info["px_count_visib"]
+    assert not np.any(visib & ~mask) and visib.sum() < mask.sum()
+    assert info["px_count_all"] == bare_info["px_count_all"] >= mask.sum()
+    assert info["bbox_obj"] == bare_info["bbox_obj"]
+    assert info["visib_fract"] == pytest.approx(visib.sum() / info["px_count_all"], rel=1e-15)
+    assert bare_info["visib_fract"] > info["visib_fract"]

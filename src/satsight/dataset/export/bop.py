@@ -17,10 +17,13 @@ scripts/calc_gt_info.py and scripts/calc_model_info.py. Layout written::
 
 IMID is the satsight frame_index (six digits). Poses: ``cam_R_m2c`` (row-major) and
 ``cam_t_m2c`` (mm) with ``x_cam = R @ x_model + t``: satsight's R(q_cam_from_body) and
-t_cam_from_body_m * 1000, the model frame being the body frame. satsight has a single
-target that only it can hide, so its mask is both ``mask`` and ``mask_visib``; the
-silhouette cut off by the image border counts in ``px_count_all`` and ``bbox_obj``
-(``silhouette.py``), as in bop_toolkit's calc_gt_info.py.
+t_cam_from_body_m * 1000, the model frame being the body frame. The target is the one
+BOP object. Without other objects in the scene only it can hide itself, so its mask is
+both ``mask`` and ``mask_visib``; with ``objects`` (debris, another spacecraft) ``mask`` is
+its amodal mask (the whole silhouette, also behind them) and ``mask_visib`` its visible
+pixels, and ``visib_fract`` their ratio. The silhouette cut off by the image border counts
+in ``px_count_all`` and ``bbox_obj`` (``silhouette.py``), as in bop_toolkit's
+calc_gt_info.py.
 
 Pixels: bop_toolkit's renderers (renderer_vispy.py ``_calc_calib_proj``: the OpenGL
 projection maps x_cam to window x = fx X / Z + cx, and OpenGL puts pixel i's centre at
@@ -55,6 +58,7 @@ from satsight.dataset.export.silhouette import outside_silhouette
 from satsight.dataset.export.source import (
     ExportFrame,
     ExportFrames,
+    read_amodal_mask,
     read_depth_m,
     read_mask,
     require_file,
@@ -180,14 +184,23 @@ class BopFrameRule:
     faces: np.ndarray
 
 
-def gt_info(frame: ExportFrame, mask: np.ndarray, valid: int, rule: BopFrameRule) -> dict:
+def gt_info(
+    frame: ExportFrame,
+    mask: np.ndarray,
+    valid: int,
+    rule: BopFrameRule,
+    amodal: np.ndarray | None = None,
+) -> dict:
     """One scene_gt_info entry, as bop_toolkit's calc_gt_info.py defines it.
 
-    The object is the only one in the scene, so its visible part is its mask; the whole
-    silhouette adds the pixels cut off by the image border (``outside_silhouette``).
+    mask: the target's visible pixels. amodal: its whole silhouette in the image, also
+    where other objects hide it (None: nothing but itself can, so it is ``mask``). The
+    whole silhouette adds the pixels cut off by the image border (``outside_silhouette``).
     """
     count = int(np.count_nonzero(mask))
     box = mask_bbox_xyxy_px(mask)
+    inside = count if amodal is None else int(np.count_nonzero(amodal))
+    inside_box = box if amodal is None else mask_bbox_xyxy_px(amodal)
     outside = outside_silhouette(
         rule.vertices_m,
         rule.faces,
@@ -196,10 +209,10 @@ def gt_info(frame: ExportFrame, mask: np.ndarray, valid: int, rule: BopFrameRule
         frame.K,
         frame.size_px,
     )
-    total = count + outside.pixel_count
-    whole = box
-    if outside.bbox_xyxy_px is not None and box is not None:
-        boxes = np.array([box, outside.bbox_xyxy_px])
+    total = inside + outside.pixel_count
+    whole = inside_box
+    if outside.bbox_xyxy_px is not None and inside_box is not None:
+        boxes = np.array([inside_box, outside.bbox_xyxy_px])
         whole = [*boxes[:, :2].min(axis=0).tolist(), *boxes[:, 2:].max(axis=0).tolist()]
     visible = count > 0
     return {
@@ -220,23 +233,26 @@ def _frame_entries(
     im = f"{frame.frame_index:06d}"
     rule.images.write(frame, frame.camera_mode, scene_dir / "gray" / f"{im}.png", _PURPOSE)
     mask = read_mask(frame, _PURPOSE)
-    mask_bytes = encode_png(mask.astype(np.uint8) * np.uint8(255))
-    for folder in ("mask", "mask_visib"):
-        (scene_dir / folder / f"{im}_{GT_ID:06d}.png").write_bytes(mask_bytes)
+    amodal = read_amodal_mask(frame)
+    visib_bytes = encode_png(mask.astype(np.uint8) * np.uint8(255))
+    mask_bytes = visib_bytes if amodal is None else encode_png(amodal.astype(np.uint8) * 255)
+    (scene_dir / "mask" / f"{im}_{GT_ID:06d}.png").write_bytes(mask_bytes)
+    (scene_dir / "mask_visib" / f"{im}_{GT_ID:06d}.png").write_bytes(visib_bytes)
     camera = {"cam_K": bop_K(frame.K).reshape(-1).tolist()}
     valid = 0
     if rule.with_depth:
         depth, scale = depth_png(read_depth_m(frame, _PURPOSE))
         (scene_dir / "depth" / f"{im}.png").write_bytes(encode_png(depth))
         camera["depth_scale"] = scale
-        valid = int(np.count_nonzero(depth[mask]))
+        # calc_gt_info.py: the silhouette's pixels with a depth measurement
+        valid = int(np.count_nonzero(depth[mask if amodal is None else amodal]))
     rotation = matrix_from_quaternion(frame.q_cam_from_body)
     gt = {
         "cam_R_m2c": rotation.reshape(-1).tolist(),
         "cam_t_m2c": (frame.t_cam_from_body_m * MM_PER_M).tolist(),
         "obj_id": OBJ_ID,
     }
-    return camera, gt, gt_info(frame, mask, valid, rule)
+    return camera, gt, gt_info(frame, mask, valid, rule, amodal)
 
 
 def write_bop_split(

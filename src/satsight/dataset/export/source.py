@@ -199,6 +199,18 @@ def read_mask(frame: ExportFrame, purpose: str) -> np.ndarray:
     return _grey(image, frame, np.uint8) > 0
 
 
+def read_amodal_mask(frame: ExportFrame) -> np.ndarray | None:
+    """The target's amodal mask (its whole silhouette, also where another object of the
+    scene hides it) as a boolean (H, W) array, when the view has one (datasets with
+    ``objects``); None otherwise, the target then being hidden by nothing but itself."""
+    path = frame.files.get("amodal_mask_png")
+    if path is None:
+        return None
+    if not path.is_file():
+        raise SatsightError(f"{path} is missing: the dataset is damaged; regenerate it")
+    return _grey(read_png(path), frame, np.uint8) > 0
+
+
 def read_depth_m(frame: ExportFrame, purpose: str) -> np.ndarray:
     """Depth along +z_cam in metres, float64 (H, W); 0 where no surface."""
     path = require_file(frame, "depth_exr", purpose)
