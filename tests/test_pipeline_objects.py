@@ -193,3 +193,24 @@ def test_the_bop_export_keeps_the_amodal_and_the_visible_mask(plain, tmp_path) -
     assert info["bbox_obj"] == bare_info["bbox_obj"]
     assert info["visib_fract"] == pytest.approx(visib.sum() / info["px_count_all"], rel=1e-15)
     assert bare_info["visib_fract"] > info["visib_fract"]
+
+
+def test_randomised_materials_keep_the_objects_in_the_scene(plain, tmp_path) -> None:
+    """A frame whose materials are randomised renders the merged scene still: the plate
+    before the target hides the same pixels (materials change no geometry)."""
+    engine, frame = plain
+    center = engine.mesh.center_m
+    camera_body = frame.cam_from_body.inverse().t_a_from_b_m
+    to_camera = (camera_body - center) / np.linalg.norm(camera_body - center)
+    occluded = _with_plate(tmp_path, center + np.array([0.0, 0.5, 0.3]), to_camera, 12.0)
+    varied = FrameEngine(
+        parse_scenario(
+            {**occluded.scenario.model_dump(mode="json", exclude_none=True),
+             "randomize": {"materials": True}}, "test"
+        )
+    )  # fmt: skip
+    record, arrays, _ = varied.finish(varied.render(0))
+    _, plain_arrays, _ = occluded.finish(occluded.render(0))
+    assert set(record["randomized"]) == {"materials"}
+    assert np.array_equal(arrays.object_id, plain_arrays.object_id)
+    assert np.count_nonzero(arrays.object_id == 2) > 50

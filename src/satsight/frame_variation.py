@@ -112,13 +112,15 @@ class FrameVariation:
 
     # --- materials and sensor ---------------------------------------------------------------
     def renderer(self, base: Renderer, draws: FrameDraws | None) -> Renderer:
-        """A renderer of the frame's materials, or ``base`` when materials do not vary."""
+        """A renderer of the frame's materials, or ``base`` when materials do not vary.
+        The renderer's own mesh is varied (with ``objects``, the target merged with them:
+        the target's materials vary, the objects' keep theirs unless they share one)."""
         if draws is None or draws.materials is None:
             return base
-        materials = dict(self.mesh.materials)
+        materials = dict(base.mesh.materials)
         for name, draw in draws.materials.items():
             materials[name] = varied_material(materials[name], draw)
-        mesh = dataclasses.replace(self.mesh, materials=materials)
+        mesh = dataclasses.replace(base.mesh, materials=materials)
         return Renderer(mesh, base.settings, base.variant)
 
     @staticmethod
