@@ -1,13 +1,18 @@
 """Monte Carlo noise and fireflies of the target at an example's render settings (JSON).
 
 Usage: python benchmarks/firefly_check.py [--examples fly_around,approach] [--frames 3]
-       [--size 512] [--reference-spp 1024] [--settings example|default]
+       [--size 512] [--reference-spp 1024] [--reference-supersampling 1]
+       [--settings example|default]
 
 Each example is rendered at ``size`` px wide (field of view kept: the pixel pitch grows by
 4096 / size) at ``frames`` frames spread evenly over its frame list, with its own render
 settings (``--settings example``) or the package defaults (``--settings default``), twice
 (two seeds), and once at ``reference-spp`` paths per pixel (a third seed) as the converged
-reference. Per frame:
+reference. With ``--reference-supersampling s`` the reference's paths are spread over s x s
+strata (reference-spp / s^2 paths each): its texture lookups then use the mip level of an
+s times smaller footprint, so it tends to the render of the full-size textures rather than
+that of the level the settings look up (mip-mapped normal and metallic-roughness maps are
+not linear in the radiance). Per frame:
 
 * ``firefly_fraction``: target pixels (object mask) whose luminance exceeds 4x the median
   of the target pixels in their 5 x 5 neighbourhood; ``firefly_fraction_reference``: the
@@ -79,13 +84,22 @@ def _scenario(name: str, size_px: int, default_settings: bool):
 
 
 def check_example(
-    name: str, frames: int, size_px: int, reference_spp: int, default_settings: bool
+    name: str,
+    frames: int,
+    size_px: int,
+    reference_spp: int,
+    default_settings: bool,
+    reference_supersampling: int = 1,
 ) -> dict:
     scenario, settings = _scenario(name, size_px, default_settings)
     engine = FrameEngine(scenario)
     sensor = engine.sensor
     renderer = Renderer(engine.mesh, settings, scenario.render.variant)
-    reference = Renderer(engine.mesh, settings.with_(samples_per_pixel=reference_spp))
+    s = reference_supersampling
+    reference = Renderer(
+        engine.mesh,
+        settings.with_(samples_per_pixel=max(1, reference_spp // s**2), supersampling=s),
+    )
     picks = np.unique(np.linspace(0, engine.frame_count - 1, frames).round().astype(int))
     records = []
     for frame_index in picks:
@@ -147,6 +161,7 @@ def check_example(
         "size_px": [engine.camera.width_px, engine.camera.height_px],
         "settings": settings.__dict__,
         "reference_spp": reference_spp,
+        "reference_supersampling": reference_supersampling,
         "frames": records,
         "median": {k: statistics.median(r[k] for r in records) for k in keys} if records else {},
     }
@@ -158,10 +173,18 @@ def main(argv=None) -> None:
     parser.add_argument("--frames", type=int, default=3)
     parser.add_argument("--size", type=int, default=512)
     parser.add_argument("--reference-spp", type=int, default=1024)
+    parser.add_argument("--reference-supersampling", type=int, default=1)
     parser.add_argument("--settings", choices=("example", "default"), default="example")
     args = parser.parse_args(argv)
     result = [
-        check_example(name, args.frames, args.size, args.reference_spp, args.settings == "default")
+        check_example(
+            name,
+            args.frames,
+            args.size,
+            args.reference_spp,
+            args.settings == "default",
+            args.reference_supersampling,
+        )
         for name in args.examples.split(",")
     ]
     print(json.dumps(result, indent=1))
