@@ -7,8 +7,8 @@ from functools import cache
 
 import numpy as np
 import pytest
-import trimesh
 
+from mesh_parts import part
 from satsight.errors import SatsightError
 from satsight.scene.materials import FIRST_MATERIALS
 from satsight.scene.mesh import TargetMesh
@@ -34,14 +34,6 @@ BUS_PARTS = {
 @cache
 def satellite(satellite_class: str, seed: int) -> TargetMesh:
     return generate_satellite(satellite_class, seed)
-
-
-def part(mesh: TargetMesh, name: str) -> trimesh.Trimesh:
-    """One part as its own trimesh (unreferenced vertices dropped), body frame, metres."""
-    index = mesh.part_names.index(name)
-    faces = mesh.faces[mesh.face_part_index == index]
-    used, local = np.unique(faces, return_inverse=True)
-    return trimesh.Trimesh(mesh.vertices_m[used], local.reshape(-1, 3), process=False)
 
 
 def materials_of(mesh: TargetMesh) -> dict[str, str]:

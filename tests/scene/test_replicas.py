@@ -9,9 +9,9 @@ from functools import cache
 
 import numpy as np
 import pytest
-import trimesh
 from scipy.spatial.distance import pdist
 
+from mesh_parts import part
 from satsight.errors import SatsightError
 from satsight.scene.material_library import LIBRARY_PREFIX, list_materials
 from satsight.scene.mesh import TargetMesh
@@ -30,13 +30,6 @@ CELL_W_PER_M2 = 1361.0 * 0.28
 @cache
 def replica(name: str, seed: int = 0) -> TargetMesh:
     return generate_satellite(name, seed)
-
-
-def part(mesh: TargetMesh, name: str) -> trimesh.Trimesh:
-    index = mesh.part_names.index(name)
-    faces = mesh.faces[mesh.face_part_index == index]
-    used, local = np.unique(faces, return_inverse=True)
-    return trimesh.Trimesh(mesh.vertices_m[used], local.reshape(-1, 3), process=False)
 
 
 def extent_of(mesh: TargetMesh, pattern: str) -> np.ndarray:

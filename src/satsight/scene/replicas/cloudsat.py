@@ -71,9 +71,7 @@ def build(parts: Parts, rng: np.random.Generator) -> None:
         (-0.6, 0.6, bottom - 0.1),
         0.06,
     )
-    drive = rng.uniform(-np.pi / 3, np.pi / 3)
-    for name, direction in (("wing_1", rp.TO_PLUS_Y), ("wing_2", rp.TO_MINUS_Y)):
-        root = direction @ np.array([0.0, 0.5 * wy - 0.02, -0.2])
-        rp.add_wing(
-            parts, name, WING_PANELS, PANEL_LENGTH_M, PANEL_WIDTH_M, YOKE_M, direction, root, drive
-        )
+    rp.add_opposed_wings(
+        parts, ("wing_1", "wing_2"), WING_PANELS, PANEL_LENGTH_M, PANEL_WIDTH_M, YOKE_M,
+        np.array([0.0, 0.5 * wy - 0.02, -0.2]), rng,
+    )  # fmt: skip

@@ -92,9 +92,7 @@ def build(parts: Parts, rng: np.random.Generator) -> None:
     rp.cylinder(
         parts, "apogee_nozzle", rp.TITANIUM, (0, 0, -0.5 * bz), (0, 0, -0.5 * bz - 0.35), 0.18, 32
     )
-    drive = rng.uniform(-np.pi / 3, np.pi / 3)
-    for name, direction in (("wing_north", rp.TO_PLUS_Y), ("wing_south", rp.TO_MINUS_Y)):
-        root = direction @ np.array([0.0, 0.5 * by + 0.02, 0.0])
-        rp.add_wing(
-            parts, name, WING_PANELS, PANEL_LENGTH_M, PANEL_WIDTH_M, YOKE_M, direction, root, drive
-        )
+    rp.add_opposed_wings(
+        parts, ("wing_north", "wing_south"), WING_PANELS, PANEL_LENGTH_M, PANEL_WIDTH_M, YOKE_M,
+        np.array([0.0, 0.5 * by + 0.02, 0.0]), rng,
+    )  # fmt: skip

@@ -151,3 +151,22 @@ def add_wing(
 def wing_span_from_root_m(panels: int, panel_length_m: float, yoke_m: float, gap_m=0.05):
     """Distance from a wing's root to its tip along the wing axis, m."""
     return yoke_m + panels * panel_length_m + (panels - 1) * gap_m
+
+
+def add_opposed_wings(
+    parts: Parts,
+    names: tuple[str, str],
+    panels: int,
+    panel_length_m: float,
+    panel_width_m: float,
+    yoke_m: float,
+    root_m,
+    rng: np.random.Generator,
+) -> None:
+    """Two wings (``add_wing``) deployed along +y and -y, turned by one solar-array drive
+    angle uniform in +-60 deg (one draw from ``rng``). ``root_m`` (3,): the root of the +y
+    wing in its own frame's axes (x, outboard y, z); the -y wing's is its mirror."""
+    drive = rng.uniform(-np.pi / 3, np.pi / 3)
+    for name, direction in zip(names, (TO_PLUS_Y, TO_MINUS_Y), strict=True):
+        root = direction @ np.asarray(root_m, dtype=np.float64)
+        add_wing(parts, name, panels, panel_length_m, panel_width_m, yoke_m, direction, root, drive)
