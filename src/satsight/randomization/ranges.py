@@ -32,6 +32,12 @@ def check_interval(name: str, interval: Interval, low: float, high: float) -> In
     return a, b
 
 
+def check_cap_angle(name: str, angle_rad: float) -> None:
+    """A cap's half-angle within [0, pi]; else a SatsightError naming ``name`` (in deg)."""
+    if not 0.0 <= angle_rad <= math.pi:
+        raise SatsightError(f"{name} must be within [0, 180], got {math.degrees(angle_rad):g}")
+
+
 @dataclass(frozen=True)
 class MaterialRanges:
     """Per material of the target (every part made of it changes alike).
@@ -66,11 +72,7 @@ class SunRanges:
 
     def __post_init__(self) -> None:
         check_interval("randomize.sun.irradiance_scale", self.irradiance_scale, 0.0, 100.0)
-        if not 0.0 <= self.direction_jitter_rad <= math.pi:
-            raise SatsightError(
-                "randomize.sun.direction_jitter_deg must be within [0, 180], got "
-                f"{math.degrees(self.direction_jitter_rad):g}"
-            )
+        check_cap_angle("randomize.sun.direction_jitter_deg", self.direction_jitter_rad)
 
 
 @dataclass(frozen=True)
@@ -140,11 +142,7 @@ class PoseRanges:
 
     def __post_init__(self) -> None:
         check_interval("randomize.pose.roll_deg", self.roll_rad, -math.pi, math.pi)
-        if not 0.0 <= self.attitude_jitter_rad <= math.pi:
-            raise SatsightError(
-                "randomize.pose.attitude_jitter_deg must be within [0, 180], got "
-                f"{math.degrees(self.attitude_jitter_rad):g}"
-            )
+        check_cap_angle("randomize.pose.attitude_jitter_deg", self.attitude_jitter_rad)
 
 
 @dataclass(frozen=True)
