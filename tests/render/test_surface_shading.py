@@ -19,7 +19,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 
@@ -35,17 +34,10 @@ from satsight.lighting.light_field import LightField, SunLight
 from satsight.render.direct import DirectRenderer
 from satsight.render.renderer import Renderer
 from satsight.render.settings import DIRECT_SUN_ONLY, RenderSettings
-from satsight.render.textures import normal_spread, pack_rgb8
 from satsight.scene.loading import load_mesh
 from satsight.scene.materials import FIRST_MATERIALS, Material
 from satsight.scene.mesh import PartSurface, merge_parts
-from satsight.scene.textures import (
-    SurfaceTextures,
-    TextureImage,
-    decode,
-    encode,
-    normal_map_pixels,
-)
+from satsight.scene.textures import SurfaceTextures, TextureImage, decode, normal_map_pixels
 
 E_W_M2 = 1000.0
 WHITE = FIRST_MATERIALS["lambert_white"]  # rho = 1, no specular lobe (IOR 1)
@@ -490,88 +482,6 @@ def test_normal_scale_tilts_further(llvm_variant):
     image = DirectRenderer(mesh, llvm_variant).render(camera, pose, SunLight(s, E_W_M2))
     got = image.radiance_w_m2_sr[image.object_mask][:, 0]
     np.testing.assert_allclose(got, E_W_M2 * (n_mapped @ s) / math.pi, rtol=FLOAT32_REL)
-
-
-# --- mip-mapped normal maps: Toksvig's variance widens the GGX lobe --------------------------
-TILT_RAD = math.radians(12.0)
-
-
-def cone_normal_map(tilt_rad: float) -> np.ndarray:
-    """4 x 4 normal-map pixels whose every 2 x 2 block holds four normals tilted by
-    ``tilt_rad`` towards +u, +v, -u and -v: each coarser level's mean normal is
-    (0, 0, cos tilt) but for 8-bit rounding."""
-    s, c = math.sin(tilt_rad), math.cos(tilt_rad)
-    block = np.array([[[s, 0, c], [0, s, c]], [[0, -s, c], [-s, 0, c]]])
-    return normal_map_pixels(np.tile(block, (2, 2, 1)))
-
-
-def test_normal_spread_is_toksvig_variance_of_the_full_size_normals():
-    """Level 0: 0; every coarser level: (1 - |m|) / |m| with m the mean of the four unit
-    (decoded) normals, i.e. (1 - cos t) / cos t to 8-bit rounding of the normals; stored as
-    round(255 sqrt(variance)) in the texel's fourth byte."""
-    pixels = cone_normal_map(TILT_RAD)
-    spreads = normal_spread(TextureImage(pixels, "linear"))
-    decoded = 2.0 * decode(pixels, "linear").reshape(-1, 3) - 1.0
-    m = (decoded / np.linalg.norm(decoded, axis=1, keepdims=True)).mean(axis=0)
-    expected = (1.0 - np.linalg.norm(m)) / np.linalg.norm(m)
-    assert [s.shape for s in spreads] == [(4, 4), (2, 2), (1, 1)]
-    assert np.all(spreads[0] == 0.0)
-    for level in spreads[1:]:
-        np.testing.assert_allclose(level, expected, rtol=1e-5)
-    closed_form = (1.0 - math.cos(TILT_RAD)) / math.cos(TILT_RAD)
-    assert abs(expected / closed_form - 1.0) < 0.02  # 8-bit normals: ~1/255 per component
-    packed = pack_rgb8(np.zeros((1, 1, 3), np.uint8), spreads[-1])
-    np.testing.assert_allclose((packed >> 24) / 255.0, math.sqrt(expected), atol=0.5 / 255)
-
-
-@pytest.mark.parametrize("view_off_deg", [0.0, 12.0, 30.0])
-def test_far_normal_mapped_plate_widens_its_lobe_by_the_normals_variance(
-    llvm_variant, view_off_deg
-):
-    """A plate whose normal map (``cone_normal_map``, 1 mm texels) is far below the pixel
-    size is shaded with the map's mean normal and the roughness of alpha'^2 = alpha^2 +
-    2 s2, s2 the stored Toksvig variance: the same image as a plate with one normal (that
-    mean) and that roughness, to float32 shading and the 8-bit step of sqrt(s2)."""
-    pixels = cone_normal_map(TILT_RAD)
-    v, f = plate_parts(size_m=2.0)
-    uv = (v[:, :2] + 1.0) / 2.0 * 500.0  # 4 texels per 4 mm tile
-    mapped = SurfaceTextures(normal=TextureImage(pixels, "linear"))
-    far = merge_parts(
-        [("plate", METAL.name, v, f, PartSurface(vertex_uv=uv, textures=mapped))],
-        {METAL.name: METAL},
-    )
-    # Independently of the tables: the coarsest level's 8-bit mean normal, and the
-    # variance's stored root.
-    decoded = 2.0 * decode(pixels, "linear").reshape(-1, 3) - 1.0
-    m = (decoded / np.linalg.norm(decoded, axis=1, keepdims=True)).mean(axis=0)
-    s2 = (round(255.0 * math.sqrt((1.0 - np.linalg.norm(m)) / np.linalg.norm(m))) / 255.0) ** 2
-    mean_pixel = encode(decode(pixels, "linear").reshape(-1, 3).mean(axis=0), "linear")
-    one = SurfaceTextures(normal=TextureImage(mean_pixel.reshape(1, 1, 3), "linear"))
-    alpha = METAL.roughness**2
-    wide = dataclasses.replace(METAL, roughness=(alpha**2 + 2.0 * s2) ** 0.25)
-    near = merge_parts(
-        [("plate", METAL.name, v, f, PartSurface(vertex_uv=uv, textures=one))], {METAL.name: wide}
-    )
-    theta = math.radians(30.0)
-    light = LightField.sun_only(np.array([math.sin(theta), 0.0, math.cos(theta)]), E_W_M2)
-    a = -theta + math.radians(view_off_deg)
-    pose = look_at_cam_from_body(
-        DISTANCE_M * np.array([math.sin(a), 0.02, math.cos(a)]), np.zeros(3), np.array([0, 1.0, 0])
-    )
-    camera = PinholeCamera(0.6, 15e-6, 32, 32)  # 2.5 cm pixels: the 1 x 1 level
-    settings = DIRECT_SUN_ONLY.with_(integrate_footprint=False)
-    images = [
-        Renderer(mesh, settings, llvm_variant).render(camera, pose, light) for mesh in (far, near)
-    ]
-    assert all(im.object_mask.all() for im in images)
-    measured, expected = (im.radiance_w_m2_sr for im in images)
-    # The widened lobe differs from the unwidened one by far more than the tolerance.
-    flat = merge_parts(
-        [("plate", METAL.name, v, f, PartSurface(vertex_uv=uv, textures=one))], {METAL.name: METAL}
-    )
-    narrow = Renderer(flat, settings, llvm_variant).render(camera, pose, light).radiance_w_m2_sr
-    assert np.abs(narrow / expected - 1.0).min() > 0.1
-    np.testing.assert_allclose(measured, expected, rtol=1e-3)
 
 
 def test_plate_lit_from_behind_stays_black_with_a_tilted_normal_map(llvm_variant):

@@ -60,8 +60,7 @@ class PathVertex:
     normal_smooth: unit interpolated corner normal on the side of wo, the horizon of light
     sources, or None where it is normal_geo. lift_m: vector from the point to the smooth
     surface, where shadow rays towards light sources start, or None (see
-    ``satsight.render.target_geometry``). slope_variance: the normal map's slope variance
-    under a mip-level lookup (``ShadingGeometry.slope_variance``), or None.
+    ``satsight.render.target_geometry``).
     """
 
     point_m: object
@@ -75,7 +74,6 @@ class PathVertex:
     throughput: object
     normal_smooth: object = None
     lift_m: object = None
-    slope_variance: object = None
 
 
 @dataclass(frozen=True, eq=False)

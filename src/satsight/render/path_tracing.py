@@ -83,7 +83,6 @@ class PathTracer:
             throughput=mi.Color3f(1.0),
             normal_smooth=start.shading.normal_smooth,
             lift_m=start.shading.lift_m,
-            slope_variance=start.shading.slope_variance,
         )
         active = start.hit
         for depth in range(self.settings.bounces + 1):

@@ -170,8 +170,6 @@ class SurfaceModel:
             changes[name] = dr.gather(type(table), table, part, active)
         if self._textured and hit is not None:
             self._apply_textures(changes, part, active, hit)
-        if self.model == "ggx" and hit is not None and hit.slope_variance is not None:
-            changes["roughness"] = self._widened(changes["roughness"], hit.slope_variance)
         params = dataclasses.replace(self._params, **changes)
         n_geo_local = n_smooth_local = None
         if self.shading_normals and hit is not None and frame is not None:
@@ -179,19 +177,6 @@ class SurfaceModel:
             if hit.normal_smooth is not None:
                 n_smooth_local = frame.to_local(hit.normal_smooth)
         return SurfaceHit(params, n_geo_local, n_smooth_local)
-
-    def _widened(self, roughness, slope_variance):
-        """GGX roughness whose lobe also holds the normal map's slope variance s2 under a
-        mip-level lookup: alpha'^2 = alpha^2 + 2 s2. A Beckmann-like lobe of width alpha
-        has slope variance alpha^2 / 2 per axis, and independent slopes add their
-        variances (Olano & Baker 2010, "LEAN mapping", I3D, section 3; GGX read as
-        Beckmann of the same alpha); Toksvig's (1 - |n|) / |n| is that per-axis variance
-        for small tilts (1 - cos t ~ t^2 / 2, t^2 the sum of the two axes' slopes^2)."""
-        import drjit as dr
-
-        alpha = ggx.ggx_alpha(roughness)
-        wide = dr.sqrt(dr.sqrt(dr.square(alpha) + 2.0 * slope_variance))
-        return dr.select(slope_variance > 0.0, dr.maximum(wide, roughness), roughness)
 
     def _apply_textures(self, values: dict, part, active, hit: PathVertex) -> None:
         """Replace the gathered values by their textured ones where a part has textures."""

@@ -123,9 +123,6 @@ class ShadingGeometry:
     adaptation), or None where it is the geometric normal (flat meshes). lift_m: vector
     from the hit to the smooth surface above it (Hanika 2021, see the module docstring),
     m, or None where there is none; shadow rays towards light sources start there.
-    slope_variance: where a normal map is looked up at a mip level, the variance per axis
-    of the slopes of the full-size normals the level averages (Toksvig's (1 - |n|) / |n|,
-    see ``satsight.render.textures``; 0 off normal-mapped parts), or None.
     """
 
     normal: object
@@ -134,7 +131,6 @@ class ShadingGeometry:
     mip_level: object = None
     normal_smooth: object = None
     lift_m: object = None
-    slope_variance: object = None
 
 
 class TargetGeometry:
@@ -294,9 +290,8 @@ class TargetGeometry:
         if corners is not None:
             smooth = dr.select(flip, -n, n)
             lift = self._lift(surf, corners, flip, active)
-        slope_variance = None
         if self.normal_mapped:
-            n, slope_variance = self._normal_mapped(surf, n, uv, lod, active)
+            n = self._normal_mapped(surf, n, uv, lod, active)
         n = dr.select(flip, -n, n)
         # Keep the viewer above the shading horizon (adaptation), as far as it is above
         # the triangle's, up to VIEW_COSINE_MIN.
@@ -304,7 +299,7 @@ class TargetGeometry:
         cos_min = dr.minimum(VIEW_COSINE_MIN, dr.dot(n_facing, wo))
         bent = dr.normalize(n + (cos_min - cos_view) * wo)
         n = dr.select(cos_view < cos_min, bent, n)
-        return ShadingGeometry(n, n_facing, uv, lod, smooth, lift, slope_variance)
+        return ShadingGeometry(n, n_facing, uv, lod, smooth, lift)
 
     def _lift(self, surf: SurfacePoint, corners, flip, active):
         """Vector from the hit to the smooth surface the corner normals describe, m:
@@ -327,9 +322,7 @@ class TargetGeometry:
 
     def _normal_mapped(self, surf: SurfacePoint, n, uv, lod, active):
         """n tilted by the part's normal map (tangent space: +x along u, +y along v), at
-        texture coordinates ``uv`` and mip level ``lod``; and, with a mip level, the slope
-        variance of the full-size normals under the lookup (None without one; the map's
-        spread times normal_scale^2, since the scale multiplies the slopes)."""
+        texture coordinates ``uv`` and mip level ``lod``."""
         mi, dr = self._mi, self._dr
         tex = self.textures
         texture = tex.slot("normal", surf.part, active)
@@ -337,7 +330,7 @@ class TargetGeometry:
         face = surf.face
 
         def tilt():
-            value, spread = tex.sample(texture, uv, mapped, lod, spread=True)
+            value = tex.sample(texture, uv, mapped, lod)
             scale = tex.normal_scale(surf.part, mapped)
             dp_du = dr.gather(mi.Vector3f, self.face_dp_du, face, mapped)
             dp_dv = dr.gather(mi.Vector3f, self.face_dp_dv, face, mapped)
@@ -350,10 +343,9 @@ class TargetGeometry:
             tilted = dr.normalize(x * t + y * b + z * n)
             # Degenerate texture coordinates or a broken map leave the normal as it was.
             ok = mapped & dr.isfinite(tilted.x) & (dr.dot(tilted, n) > 0.0)
-            return dr.select(ok, tilted, n), dr.select(ok, spread * scale * scale, 0.0)
+            return dr.select(ok, tilted, n)
 
-        n_mapped, spread = guarded(mapped, tilt, lambda: (mi.Vector3f(n), mi.Float(0.0)))
-        return n_mapped, None if lod is None else spread
+        return guarded(mapped, tilt, lambda: mi.Vector3f(n))
 
     def facing_normal(self, surf: SurfacePoint, towards):
         """The surface's unit normal flipped to the side of ``towards`` (surfaces are

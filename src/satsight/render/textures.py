@@ -15,16 +15,6 @@ SIGGRAPH). Base colours are sRGB-encoded and decoded through a 256-entry table b
 filtering, so filtering happens in linear light; the other slots are linear data (x / 255).
 Texel centres lie at ((i + 0.5) / W, (j + 0.5) / H) with j counted from the *bottom* row
 (v up), so a texel's value is returned exactly at its centre.
-
-Normal maps keep, in each texel's fourth byte, the spread of the full-size normals that its
-level averages (``normal_spread``): a mip level's mean normal is shorter than 1 where the
-normals under it differ, and Toksvig's variance (1 - |n|) / |n| (M. Toksvig 2005,
-"Mipmapping normal maps", Journal of Graphics Tools 10(3), 65-71) tells the shading how
-much to widen the specular lobe so that the far surface keeps the glint spread of its
-wrinkles instead of turning into a mirror. It is computed here in floating point from the
-unit full-size normals (8-bit mean normals would leave a length error of a few 1e-3, as
-large as the variance of gentle wrinkles), stored as sqrt(variance) x 255 (variance
-capped at 1).
 """
 
 from __future__ import annotations
@@ -56,22 +46,6 @@ def guarded(cond, true_fn, false_fn):
     )
 
 
-def normal_spread(image: TextureImage) -> list[np.ndarray]:
-    """Per mip level of a normal map (``mip_chain``), the (H, W) float64 Toksvig variance
-    (1 - |m|) / |m| of its texels, m the mean of the unit full-size normals under the texel
-    (0 at full size), capped at 1."""
-    # float32 keeps 1 - |m| to ~1e-7, far below the 8-bit step of the stored variance.
-    normals = 2.0 * decode(image.pixels, image.encoding, np.float32) - 1.0
-    length = np.linalg.norm(normals, axis=-1, keepdims=True)
-    mean = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
-    spreads = [np.zeros(mean.shape[:2])]
-    while max(mean.shape[:2]) > 1:
-        mean = halve_linear(mean)  # the box mean of the unit normals under each texel
-        size = np.maximum(np.linalg.norm(mean.astype(np.float64), axis=-1), 1e-12)
-        spreads.append(np.minimum((1.0 - np.minimum(size, 1.0)) / size, 1.0))
-    return spreads
-
-
 def mip_chain(image: TextureImage) -> list[np.ndarray]:
     """The image and its halvings down to 1 x 1 (uint8, row 0 at the top), each level
     filtered from the previous one's linear values (``satsight.scene.textures.halve``)."""
@@ -83,15 +57,12 @@ def mip_chain(image: TextureImage) -> list[np.ndarray]:
     return levels
 
 
-def pack_rgb8(pixels: np.ndarray, spread: np.ndarray | None = None) -> np.ndarray:
+def pack_rgb8(pixels: np.ndarray) -> np.ndarray:
     """(H, W, 3) uint8, row 0 at the top -> (H * W,) uint32 R | G << 8 | B << 16, row 0 at
-    the bottom (so that the row index grows with v); with ``spread`` ((H, W) variance in
-    [0, 1]), round(255 sqrt(spread)) << 24."""
+    the bottom (so that the row index grows with v)."""
     h, w = pixels.shape[:2]
     rgba = np.zeros((h, w, 4), dtype=np.uint8)
     rgba[..., :3] = pixels[::-1]
-    if spread is not None:
-        rgba[..., 3] = np.rint(255.0 * np.sqrt(np.clip(spread, 0.0, 1.0)))[::-1]
     return rgba.view(np.dtype("<u4")).reshape(-1).astype(np.uint32)  # bytes R, G, B, 0
 
 
@@ -105,7 +76,6 @@ class TextureTables:
         self._mi, self._dr = mi, dr
         images: dict[int, TextureImage] = {}
         texture_index: dict[int, int] = {}
-        normal_maps: set[int] = set()
         slot_ids = {slot: [] for slot in SLOTS}
         replace, normal_scale = [], []
         for part in range(len(mesh.part_names)):
@@ -119,8 +89,6 @@ class TextureTables:
                 if key not in texture_index:
                     texture_index[key] = len(images)
                     images[key] = image
-                if slot == "normal":
-                    normal_maps.add(key)
                 slot_ids[slot].append(texture_index[key])
             replace.append(textures is not None and textures.factors == "replace")
             normal_scale.append(textures.normal_scale if textures is not None else 1.0)
@@ -128,9 +96,8 @@ class TextureTables:
 
         texels, level_rows, texture_rows = [], [], []
         offset = 0
-        for key, image in images.items():
+        for image in images.values():
             chain = mip_chain(image)
-            spreads = normal_spread(image) if key in normal_maps else [None] * len(chain)
             texture_rows.append(
                 (
                     len(level_rows),
@@ -140,10 +107,10 @@ class TextureTables:
                     0.5 * math.log2(image.size_px[0] * image.size_px[1]),
                 )
             )
-            for level, spread in zip(chain, spreads, strict=True):
+            for level in chain:
                 h, w = level.shape[:2]
                 level_rows.append((offset, w, h))
-                texels.append(pack_rgb8(level, spread))
+                texels.append(pack_rgb8(level))
                 offset += w * h
         self.texel_count = offset
         table = np.array(texture_rows, dtype=np.float64).reshape(-1, 5)
@@ -194,37 +161,31 @@ class TextureTables:
         return self._dr.gather(self._mi.Float, self._part_normal_scale, part, active)
 
     # --- lookup -------------------------------------------------------------------------
-    def sample(self, texture, uv, active, lod=None, srgb: bool = False, spread: bool = False):
+    def sample(self, texture, uv, active, lod=None, srgb: bool = False):
         """Filtered value (Color3f, linear) of ``texture`` (Int32 >= 0 on active lanes) at
         ``uv`` (Point2f). lod: Float log2(footprint x texels per uv unit / texture size)
         offset, i.e. ``lod + log2(size)`` selects the level; None: the full-size level,
-        bilinear. srgb: decode sRGB (base colour) instead of x / 255. spread: also return
-        the filtered normal spread of a normal map (Float variance, see the module
-        docstring), as the value's fourth channel: (Color3f, Float)."""
+        bilinear. srgb: decode sRGB (base colour) instead of x / 255."""
         mi, dr = self._mi, self._dr
         t = mi.UInt32(dr.maximum(texture, 0))
         first = dr.gather(mi.UInt32, self._first_level, t, active)
         wrap = dr.gather(mi.Vector2u, self._wrap, t, active)
         if lod is None:
-            value = self._bilinear(first, uv, wrap, active, srgb, spread)
-            return value if spread else value[0]
+            return self._bilinear(first, uv, wrap, active, srgb)
         count = dr.gather(mi.Float, self._level_count, t, active)
         level = dr.clip(lod + dr.gather(mi.Float, self._log2_size, t, active), 0.0, count - 1.0)
         lower = dr.floor(level)
         weight = level - lower
         upper = dr.minimum(lower + 1.0, count - 1.0)
-        near = self._bilinear(first + mi.UInt32(lower), uv, wrap, active, srgb, spread)
+        near = self._bilinear(first + mi.UInt32(lower), uv, wrap, active, srgb)
         blend = active & (weight > 0.0)
         # The second level only where some lane of a packet needs it (see ``guarded``).
         far = guarded(
             blend,
-            lambda: self._bilinear(first + mi.UInt32(upper), uv, wrap, blend, srgb, spread),
-            lambda: (mi.Color3f(0.0), mi.Float(0.0)),
+            lambda: self._bilinear(first + mi.UInt32(upper), uv, wrap, blend, srgb),
+            lambda: mi.Color3f(0.0),
         )
-        value = dr.lerp(near[0], far[0], weight)
-        if not spread:
-            return value
-        return value, dr.lerp(near[1], far[1], weight)
+        return dr.lerp(near, far, weight)
 
     def _wrapped(self, i, size, mode):
         """Texel index i (Float, integral) wrapped into [0, size) by mode (UInt32 code)."""
@@ -238,19 +199,14 @@ class TextureTables:
         return dr.clip(out, 0.0, size - 1.0)  # guards rounding of huge coordinates
 
     def _texel(self, index, active, srgb: bool):
-        """(Color3f value, Float normal spread) of texel ``index``."""
         mi, dr = self._mi, self._dr
         t = dr.gather(mi.UInt32, self._texels, index, active)
         channels = (t & 0xFF, (t >> 8) & 0xFF, (t >> 16) & 0xFF)
-        root = mi.Float(t >> 24) * (1.0 / 255.0)
         if srgb:
-            value = mi.Color3f(*(dr.gather(mi.Float, self._srgb_lut, c, active) for c in channels))
-        else:
-            value = mi.Color3f(*(mi.Float(c) * (1.0 / 255.0) for c in channels))
-        return value, root * root
+            return mi.Color3f(*(dr.gather(mi.Float, self._srgb_lut, c, active) for c in channels))
+        return mi.Color3f(*(mi.Float(c) * (1.0 / 255.0) for c in channels))
 
-    def _bilinear(self, level, uv, wrap, active, srgb: bool, spread: bool = False):
-        """(value, normal spread or 0) bilinear in one level."""
+    def _bilinear(self, level, uv, wrap, active, srgb: bool):
         mi, dr = self._mi, self._dr
         offset = dr.gather(mi.UInt32, self._level_offset, level, active)
         size = dr.gather(mi.Vector2f, self._level_size, level, active)
@@ -262,11 +218,8 @@ class TextureTables:
         ys = [mi.UInt32(self._wrapped(y0 + k, size.y, wrap.y)) for k in (0.0, 1.0)]
         width = mi.UInt32(size.x)
         row0, row1 = offset + ys[0] * width, offset + ys[1] * width
-        c00, s00 = self._texel(row0 + xs[0], active, srgb)
-        c10, s10 = self._texel(row0 + xs[1], active, srgb)
-        c01, s01 = self._texel(row1 + xs[0], active, srgb)
-        c11, s11 = self._texel(row1 + xs[1], active, srgb)
-        value = dr.lerp(dr.lerp(c00, c10, fx), dr.lerp(c01, c11, fx), fy)
-        if not spread:
-            return value, mi.Float(0.0)
-        return value, dr.lerp(dr.lerp(s00, s10, fx), dr.lerp(s01, s11, fx), fy)
+        c00 = self._texel(row0 + xs[0], active, srgb)
+        c10 = self._texel(row0 + xs[1], active, srgb)
+        c01 = self._texel(row1 + xs[0], active, srgb)
+        c11 = self._texel(row1 + xs[1], active, srgb)
+        return dr.lerp(dr.lerp(c00, c10, fx), dr.lerp(c01, c11, fx), fy)
