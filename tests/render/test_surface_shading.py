@@ -484,6 +484,67 @@ def test_normal_scale_tilts_further(llvm_variant):
     np.testing.assert_allclose(got, E_W_M2 * (n_mapped @ s) / math.pi, rtol=FLOAT32_REL)
 
 
+# --- stochastic texture filtering: the footprint's mean radiance, not its mean normal -------
+def cone_normal_map(tilt_rad: float) -> np.ndarray:
+    """4 x 4 normal-map pixels whose every 2 x 2 block holds four normals tilted by
+    ``tilt_rad`` towards +u, +v, -v and -u: coarser levels hold their mean, (0, 0, cos)."""
+    s, c = math.sin(tilt_rad), math.cos(tilt_rad)
+    block = np.array([[[s, 0, c], [0, s, c]], [[0, -s, c], [-s, 0, c]]])
+    return normal_map_pixels(np.tile(block, (2, 2, 1)))
+
+
+@pytest.mark.parametrize("texture_filter", ["stochastic", "mip"])
+def test_far_normal_mapped_plate_with_stochastic_filtering_keeps_the_mean_radiance(
+    llvm_variant, texture_filter
+):
+    """A Lambert plate (rho = 1) with 1 mm normal-map texels (4 mm tiles) under a grazing
+    Sun, seen with 2.5 cm pixels: its mean radiance over the full-size texture is the mean
+    of E max(n'.s, 0) / pi over a tile, n' the normalised bilinear map normal (numpy, on a
+    256 x 256 grid). ``stochastic`` takes one full-size point of each pixel's footprint at
+    random, so the frame's mean tends to it with standard error std / sqrt(pixels); ``mip``
+    shades the tile's mean normal (0, 0, 1) (to 8-bit rounding), which misses it by far
+    more: the mean of a clamped cosine is not the cosine of the mean normal."""
+    pixels = cone_normal_map(math.radians(30.0))
+    v, f = plate_parts(size_m=2.0)
+    tiles = 500.0
+    uv = (v[:, :2] + 1.0) / 2.0 * tiles
+    textures = SurfaceTextures(normal=TextureImage(pixels, "linear"))
+    mesh = merge_parts(
+        [("plate", WHITE.name, v, f, PartSurface(vertex_uv=uv, textures=textures))],
+        {WHITE.name: WHITE},
+    )
+    sun = np.array([math.sin(math.radians(85.0)), 0.0, math.cos(math.radians(85.0))])
+    pose = look_at_cam_from_body(
+        DISTANCE_M * np.array([0.05, 0.03, 1.0]), np.zeros(3), np.array([0, 1.0, 0])
+    )
+    camera = PinholeCamera(0.6, 15e-6, 48, 48)
+    settings = DIRECT_SUN_ONLY.with_(integrate_footprint=False, texture_filter=texture_filter)
+    image = Renderer(mesh, settings, llvm_variant).render(
+        camera, pose, LightField.sun_only(sun, E_W_M2)
+    )
+    assert image.object_mask.all()
+    measured = float(image.radiance_w_m2_sr[..., 0].mean())
+    # The closed form over one tile: texel (i, j) centred at ((i + 0.5) / 4, (j + 0.5) / 4),
+    # v from the bottom row, repeat wrap.
+    normals = 2.0 * decode(np.flipud(pixels), "linear") - 1.0
+    grid = (np.arange(256) + 0.5) / 256 * 4 - 0.5
+    x0 = np.floor(grid).astype(int)
+    fx = (grid - x0)[:, None]
+    i0, i1 = np.mod(x0, 4), np.mod(x0 + 1, 4)
+    rows = [(1 - fx) * normals[j][i0] + fx * normals[j][i1] for j in range(4)]  # along u
+    rows = np.stack(rows)  # (4 rows j, 256 u, 3)
+    fy = (grid - x0)[:, None, None]
+    n = (1 - fy) * rows[i0] + fy * rows[i1]  # (256 v, 256 u, 3)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    radiance = E_W_M2 * np.maximum(n @ sun, 0.0) / math.pi
+    expected = float(radiance.mean())
+    standard_error = float(radiance.std()) / math.sqrt(image.object_mask.sum())
+    if texture_filter == "stochastic":
+        assert abs(measured - expected) < 4.0 * standard_error
+    else:
+        assert abs(measured - expected) > 10.0 * standard_error
+
+
 def test_plate_lit_from_behind_stays_black_with_a_tilted_normal_map(llvm_variant):
     """The Sun 10 degrees below the plate, the map's normal tilted 60 degrees towards it
     (so n'.s = 0.77): the side facing the camera is unlit all the same."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 from satsight.render.body_light import BodyLight
 from satsight.render.frame_values import FrameValues
 from satsight.render.path_records import CameraRayHit, PathStart
-from satsight.render.path_streams import PathStreams
+from satsight.render.path_streams import PathStreams, texture_segment
 from satsight.render.settings import RenderSettings
 from satsight.render.target_geometry import TargetGeometry
 
@@ -40,19 +40,30 @@ class CameraRays:
         self._streams = streams
 
     def primary(
-        self, frame: FrameValues, px, py, opacity_sample, hits: tuple | None = None
+        self,
+        frame: FrameValues,
+        px,
+        py,
+        opacity_sample,
+        hits: tuple | None = None,
+        footprint_sample=None,
     ) -> CameraRayHit:
         """Camera rays through image positions (px, py) (px) and the surfaces they stop at.
 
         hits: the rays' surfaces (face, u, v) found by an earlier trace of the same rays,
-        which are then not traced again (and have no distance).
+        which are then not traced again (and have no distance). footprint_sample: a
+        function giving uniform random numbers (Float), for the point of the footprint
+        whose textures the hit takes with ``texture_filter="stochastic"``; None: the
+        footprint's mip level.
         """
         dr = self._dr
         d_cam, d_body = self.directions(frame, px, py)
         # Start the ray just outside the target's bounding sphere with one rounding (FMA),
         # so the start point and Embree's hit distances keep float32 precision.
         origin = dr.fma(d_body, frame.ray_start_m, frame.camera_render_m)
-        return self._surfaces(frame, origin, d_body, d_cam, frame.ray_start_m, opacity_sample, hits)
+        return self._surfaces(
+            frame, origin, d_body, d_cam, frame.ray_start_m, opacity_sample, hits, footprint_sample
+        )
 
     def directions(self, frame: FrameValues, px, py) -> tuple:
         """Unit directions (camera frame, body frame) of the camera rays through image
@@ -67,16 +78,33 @@ class CameraRays:
         )
         return d_cam, frame.R_body_from_cam @ d_cam
 
-    def anchored(self, frame: FrameValues, idx, opacity_sample, hits: tuple | None = None):
+    def anchored(
+        self,
+        frame: FrameValues,
+        idx,
+        opacity_sample,
+        hits: tuple | None = None,
+        footprint_sample=None,
+    ):
         """The rays of ``frame.anchored_rays`` (entry ``idx``: a start in front of the target,
         render space, and a unit direction, body frame; see ``render.footprint``) and the
         surfaces they stop at (``primary``; distances from the start)."""
         origin, d_body = frame.anchored_rays(idx)
         d_cam = frame.R_cam_from_body @ d_body
-        return self._surfaces(frame, origin, d_body, d_cam, 0.0, opacity_sample, hits)
+        return self._surfaces(
+            frame, origin, d_body, d_cam, 0.0, opacity_sample, hits, footprint_sample
+        )
 
     def _surfaces(
-        self, frame: FrameValues, origin, d_body, d_cam, start_m, opacity_sample, hits
+        self,
+        frame: FrameValues,
+        origin,
+        d_body,
+        d_cam,
+        start_m,
+        opacity_sample,
+        hits,
+        footprint_sample=None,
     ) -> CameraRayHit:
         mi, dr = self._mi, self._dr
         if hits is None:
@@ -91,13 +119,15 @@ class CameraRays:
             distance_m = None
         # Shading normal and geometric normal, both on the camera's side, and texture
         # coordinates (mip level from the sub-pixel footprint).
-        footprint_m = None
+        footprint_m = point = None
         if self._geometry.textures is not None:
             ss = float(self.settings.supersampling)
             footprint_m = dr.norm(surface.point_m - frame.camera_render_m) / (
                 frame.focal_length_px * ss
             )
-        shading = self._geometry.shading(surface, hit, -d_body, footprint_m)
+            if footprint_sample is not None and self.settings.texture_filter == "stochastic":
+                point = mi.Point2f(footprint_sample(), footprint_sample())
+        shading = self._geometry.shading(surface, hit, -d_body, footprint_m, point)
         return CameraRayHit(hit, distance_m, surface, shading, d_cam, d_body)
 
     def pass_primary(
@@ -109,8 +139,14 @@ class CameraRays:
         mi = self._mi
         s = self.settings
         rng, ld = self._streams.streams(frame, idx, pass_index, 0)
+        footprint_sample = None
+        if s.texture_filter == "stochastic" and self._geometry.textures is not None:
+            texture_rng = self._streams.streams(frame, idx, pass_index, texture_segment())[0]
+            footprint_sample = texture_rng.next_float32
         if frame.anchored_rays is not None:  # one path per ray, no sub-pixel position
-            hit = self.anchored(frame, idx, lambda layer: rng.next_float32(), hits)
+            hit = self.anchored(
+                frame, idx, lambda layer: rng.next_float32(), hits, footprint_sample
+            )
             return hit, PathStart(idx, pass_index, ld, lane)
         px, py = frame.pixel_position_px(idx)
         ss = float(s.supersampling)
@@ -121,7 +157,9 @@ class CameraRays:
         stratum = pass_index // s.samples_per_pixel
         ox = (mi.Float(stratum % s.supersampling) + jx) / ss - 0.5
         oy = (mi.Float(stratum // s.supersampling) + jy) / ss - 0.5
-        hit = self.primary(frame, px + ox, py + oy, lambda layer: rng.next_float32(), hits)
+        hit = self.primary(
+            frame, px + ox, py + oy, lambda layer: rng.next_float32(), hits, footprint_sample
+        )
         return hit, PathStart(idx, pass_index, ld, lane)
 
     def labels(self, frame: FrameValues, rays: CameraRayHit, pixel):

@@ -36,6 +36,12 @@ def shading_segment(depth: int) -> int:
     return 1 + 2 * depth
 
 
+def texture_segment() -> int:
+    """Random-stream segment of the camera ray's point in its footprint (stochastic texture
+    filtering)."""
+    return 2000
+
+
 def bounce_segment(depth: int) -> int:
     """Random-stream segment of the bounce ray that leaves path vertex ``depth``."""
     return 2 + 2 * depth

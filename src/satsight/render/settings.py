@@ -15,11 +15,13 @@ BrdfModel = Literal["ggx", "improved_phong", "phong"]
 GgxMasking = Literal["schlick", "smith"]
 SunRepresentation = Literal["delta", "sh"]
 EnvironmentMode = Literal["sampled", "sh", "unshadowed", "off"]
+TextureFilter = Literal["mip", "stochastic"]
 
 BRDF_MODELS: tuple[str, ...] = ("ggx", "improved_phong", "phong")
 GGX_MASKINGS: tuple[str, ...] = ("schlick", "smith")
 SUN_REPRESENTATIONS: tuple[str, ...] = ("delta", "sh")
 ENVIRONMENT_MODES: tuple[str, ...] = ("sampled", "sh", "unshadowed", "off")
+TEXTURE_FILTERS: tuple[str, ...] = ("mip", "stochastic")
 SH_ORDER_RANGE = (2, 8)
 MAX_BOUNCES = 16
 MAX_TRANSPARENT_LAYERS = 8
@@ -55,6 +57,13 @@ class RenderSettings:
     under 128 / supersampling px across) again on a fine grid over that box, so that its
     pixels hold its flux integrated over their area (``satsight.render.footprint``): a
     sub-pixel target keeps its signal instead of vanishing or filling a pixel.
+    texture_filter: how a camera ray's hit averages the textures over its footprint
+    (``satsight.render.target_geometry``): ``"mip"`` looks up the mip level of the
+    footprint, which averages the texture's *values* (smooth, but normal and
+    metallic-roughness maps do not enter the radiance linearly, so the expected radiance
+    depends on the footprint); ``"stochastic"`` looks up the full-size texture at a random
+    point of the footprint, so the expected radiance is the radiance averaged over it
+    (unbiased, with the texture's sub-pixel contrast as noise).
     """
 
     brdf: BrdfModel = "ggx"
@@ -68,6 +77,7 @@ class RenderSettings:
     max_transparent_layers: int = 4
     indirect_min_roughness: float = 0.35
     integrate_footprint: bool = True
+    texture_filter: TextureFilter = "mip"
 
     def __post_init__(self) -> None:
         problems = []
@@ -76,6 +86,7 @@ class RenderSettings:
             ("ggx_masking", GGX_MASKINGS),
             ("sun", SUN_REPRESENTATIONS),
             ("environment", ENVIRONMENT_MODES),
+            ("texture_filter", TEXTURE_FILTERS),
         ):
             if getattr(self, key) not in allowed:
                 problems.append(f"{key} must be one of {', '.join(allowed)}")

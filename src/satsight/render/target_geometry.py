@@ -249,13 +249,21 @@ class TargetGeometry:
             v=v,
         )
 
-    def shading(self, surf: SurfacePoint, active, wo, footprint_m=None) -> ShadingGeometry:
+    def shading(
+        self, surf: SurfacePoint, active, wo, footprint_m=None, footprint_point=None
+    ) -> ShadingGeometry:
         """The normals and texture coordinates of the hits ``surf`` (on lanes ``active``)
         seen from direction ``wo`` (unit, towards the viewer).
 
         footprint_m: the width of the ray's footprint across its direction at the hit, m;
-        given, with textures, the result has a mip level. For a flat untextured mesh the
-        shading normal is the facing geometric normal.
+        given, with textures, the result has a mip level. footprint_point: with
+        ``footprint_m``, a point of the unit square (Point2f, uniform random): the textures
+        are then looked up in full size at that point of a square of the footprint's width
+        around the hit (axis-aligned in texture space; stochastic texture filtering, Pharr
+        et al. 2024, "Filtering after shading with stochastic texture filtering", Proc. ACM
+        Comput. Graph. Interact. Tech. 7(1)): the expected radiance is the radiance averaged
+        over that square, where a mip level averages the texture's values before shading.
+        For a flat untextured mesh the shading normal is the facing geometric normal.
         """
         mi, dr = self._mi, self._dr
         n_geo = surf.normal_geo
@@ -271,7 +279,11 @@ class TargetGeometry:
                 # mean, in texture units (uv per metre of the triangle).
                 scale = dr.gather(mi.Float, self.face_uv_per_m, face, active)
                 cos_view = dr.maximum(dr.abs(dr.dot(n_geo, wo)), _MIN_FOOTPRINT_COSINE)
-                lod = dr.log2(footprint_m * scale * dr.rsqrt(cos_view))
+                width = footprint_m * scale * dr.rsqrt(cos_view)
+                if footprint_point is None:
+                    lod = dr.log2(width)
+                else:
+                    uv = uv + (footprint_point - 0.5) * width
         if not self.shading_normals:
             return ShadingGeometry(n_facing, n_facing, uv, lod)
         corners = None
