@@ -66,6 +66,7 @@ from satsight.render.settings import (
     GGX_MASKINGS,
     SH_ORDER_RANGE,
     SUN_REPRESENTATIONS,
+    TEXTURE_FILTERS,
     RenderSettings,
 )
 
@@ -169,6 +170,7 @@ class RenderConfig(_Strict):
     supersampling: int = Field(default=1, ge=1, le=8)
     indirect_min_roughness: float = Field(default=0.35, ge=0.0, le=1.0)
     integrate_footprint: bool = True
+    texture_filter: Literal[TEXTURE_FILTERS] = "mip"
     variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
     # Motion during the exposure (``satsight.frame_motion``): "auto" renders time samples
     # over the exposure when the target's box corners move more than 0.1 px across it.
@@ -186,6 +188,7 @@ class RenderConfig(_Strict):
             supersampling=self.supersampling,
             indirect_min_roughness=self.indirect_min_roughness,
             integrate_footprint=self.integrate_footprint,
+            texture_filter=self.texture_filter,
         )
 
 
