@@ -13,7 +13,8 @@ import pytest
 
 
 def pytest_configure(config) -> None:
-    """One BLAS thread per test process (and per program a test starts). The suite's
+    """One BLAS thread per test process (and per program a test starts); under xdist one
+    Dr.Jit thread per worker and per program it starts. The suite's
     workers already fill the cores, and OpenBLAS threads that wait on each other under that
     load make small solves tens of times slower (a 2292 x 10 SVD: 15 ms on two threads
     against 0.46 ms on one, with the suite running beside it). Results do not depend on it:
@@ -22,7 +23,9 @@ def pytest_configure(config) -> None:
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=1, user_api="blas")
-    if hasattr(config, "workerinput"):  # a pytest-xdist worker: its Dr.Jit pool too
+    if hasattr(config, "workerinput"):  # a pytest-xdist worker: its Dr.Jit pool too, and
+        # that of every satsight program it starts (satsight.render.backend.use_variant)
+        os.environ["SATSIGHT_RENDER_THREADS"] = "1"
         import drjit
 
         drjit.set_thread_count(1)

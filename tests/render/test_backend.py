@@ -223,3 +223,24 @@ def test_agreement_check_passes_for_identical_llvm_renders(llvm_variant) -> None
     other = DirectRenderer(mesh, CPU_VARIANT).render(camera, moved, sun)
     with pytest.raises(AssertionError):
         _check_agreement(other, first)
+
+
+def test_render_threads_come_from_the_environment(llvm_variant, monkeypatch) -> None:
+    """SATSIGHT_RENDER_THREADS sets the CPU backend's thread count; a bad value is one
+    clear error."""
+    import drjit as dr
+
+    before = dr.thread_count()
+    try:
+        monkeypatch.setenv("SATSIGHT_RENDER_THREADS", "3")
+        backend._limit_cpu_threads()
+        assert dr.thread_count() == 3
+        for bad in ("0", "two", "-1"):
+            monkeypatch.setenv("SATSIGHT_RENDER_THREADS", bad)
+            with pytest.raises(SatsightError, match="SATSIGHT_RENDER_THREADS must be a whole"):
+                backend._limit_cpu_threads()
+        monkeypatch.delenv("SATSIGHT_RENDER_THREADS")
+        backend._limit_cpu_threads()
+        assert dr.thread_count() == 3  # unset: left as it is
+    finally:
+        dr.set_thread_count(before)

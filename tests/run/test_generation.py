@@ -499,7 +499,7 @@ def test_an_existing_scheduler_and_a_worker_killed_mid_run(tmp_path: Path, refer
     elsewhere, none is lost or committed twice, and the bytes are the reference's."""
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     ) as cluster:
         pids = [nanny.process.pid for nanny in cluster.workers.values()]
         killed: list[int] = []

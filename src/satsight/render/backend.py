@@ -83,7 +83,10 @@ def use_variant(requested: str = "auto") -> str:
 
     requested: ``"auto"`` (CUDA when an NVIDIA GPU works, else LLVM on the CPU),
     ``"llvm_ad_rgb"`` or ``"cuda_ad_rgb"``. The environment variable ``SATSIGHT_VARIANT``
-    overrides ``"auto"``.
+    overrides ``"auto"``; ``SATSIGHT_RENDER_THREADS`` (a whole number >= 1) sets the CPU
+    backend's thread count (default: one per core), for several satsight processes sharing
+    a machine, where threads beyond the cores wait on each other. Renders do not depend on
+    the thread count.
     """
     if requested == "auto":
         requested = os.environ.get("SATSIGHT_VARIANT", "auto")
@@ -105,6 +108,9 @@ def use_variant(requested: str = "auto") -> str:
     try:
         mi.set_variant(CPU_VARIANT)
         _llvm_works()
+        _limit_cpu_threads()
+    except SatsightError:
+        raise
     except Exception as exc:  # pragma: no cover - depends on the system's LLVM
         raise SatsightError(
             "Dr.Jit's CPU backend could not start (it needs a shared libLLVM >= 16). "
@@ -112,6 +118,21 @@ def use_variant(requested: str = "auto") -> str:
             "(or set DRJIT_LIBLLVM_PATH to a libLLVM.so). Cause: " + str(exc)
         ) from exc
     return CPU_VARIANT
+
+
+def _limit_cpu_threads() -> None:
+    """Dr.Jit's CPU threads from ``SATSIGHT_RENDER_THREADS``, when it is set."""
+    text = os.environ.get("SATSIGHT_RENDER_THREADS", "").strip()
+    if not text:
+        return
+    if not text.isdigit() or int(text) < 1:
+        raise SatsightError(
+            f"SATSIGHT_RENDER_THREADS must be a whole number >= 1, got {text!r}; "
+            "unset it for one thread per core"
+        )
+    import drjit as dr
+
+    dr.set_thread_count(int(text))
 
 
 @cache

@@ -237,7 +237,9 @@ def dask_client(
                 n_workers=workers,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                # Any free port: with None the scheduler's HTTP server still takes 8787,
+                # and a second run on the machine warns that it is in use.
+                dashboard_address=":0",
                 silence_logs=logging.ERROR,
             )
         client = Client(cluster)
