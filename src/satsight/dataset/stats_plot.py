@@ -33,7 +33,7 @@ def plot_stats(stats: dict, path: Path) -> Path:
         ax.axis("off")
     for ax, hist in zip(axes.ravel(), stats["histograms"].values(), strict=False):
         ax.set_xlabel(hist["label"])
-        ax.set_ylabel("frames")
+        ax.set_ylabel("frames x materials" if "(every material)" in hist["label"] else "frames")
         ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         if hist["scale"] == "log":
             ax.set_xscale("log")
