@@ -21,6 +21,9 @@ from satsight.dataset.stats import dataset_stats
 from satsight.frames.quaternion import matrix_from_quaternion
 from satsight.pipeline import FrameEngine
 from satsight.run.generation import generate_dataset
+from satsight.scene.band_reflectance import library_materials
+from satsight.scene.material_families import swap_candidates
+from satsight.scene.material_library import LIBRARY_PREFIX
 
 FRAMES = 4
 SIZE_PX = (192, 144)
@@ -71,7 +74,7 @@ def _numbers(record: dict, group: str) -> dict[str, float]:
     values = record["randomized"][group]
     if group == "materials":
         return {
-            f"{m}.{k}": v for m, d in values.items() for k, v in d.items() if k != "base_color_rgb"
+            f"{m}.{k}": v for m, d in values.items() for k, v in d.items() if isinstance(v, float)
         }
     return {k: v for k, v in values.items() if isinstance(v, float)}
 
@@ -205,3 +208,25 @@ def test_stats_histogram_every_drawn_value(randomized_dataset: Path) -> None:
     assert sum(pooled["counts"]) == FRAMES * materials
     assert histograms["randomized.pose.roll_rad"]["unit"] == "rad"
     assert histograms["randomized.sensor.read_noise_e"]["unit"] == "e-"
+
+
+def test_swapped_materials_come_from_their_family_and_are_rendered(engine_records) -> None:
+    """A swapped material is another library material of its family, and the frame's
+    recorded values are that material's, varied by the drawn factors."""
+    engine, records, _ = engine_records
+    swaps = 0
+    for record in records:
+        for name, values in record["randomized"]["materials"].items():
+            swapped = values["library_material"]
+            if swapped is None:
+                continue
+            swaps += 1
+            assert swapped in swap_candidates(name)
+            library = library_materials([swapped], engine.scenario.sun.band_nm)
+            base = library[LIBRARY_PREFIX + swapped]
+            assert values["roughness"] == pytest.approx(
+                min(1.0, max(0.02, base.roughness * values["roughness_scale"])), rel=1e-12
+            )
+    # 4 frames x 9 materials with a family of two or more, each swapped with p = 0.25:
+    # none at all would happen with probability 0.75^36 = 3e-5.
+    assert swaps > 0

@@ -24,12 +24,17 @@ from satsight.randomization.apply import (
     pose_record,
     roll_transform,
     sensor_record,
+    swapped_name,
     varied_material,
     varied_sensor,
 )
-from satsight.randomization.draws import FrameDraws, draw_frame, draw_record
+from satsight.randomization.draws import FrameDraws, MaterialDraw, draw_frame, draw_record
 from satsight.randomization.ranges import RandomizationRanges
 from satsight.render.renderer import Renderer
+from satsight.scene.band_reflectance import BandMaterials, builtins_from_library
+from satsight.scene.material_families import swap_candidates
+from satsight.scene.material_library import LIBRARY_PREFIX
+from satsight.scene.materials import Material
 from satsight.scene.mesh import TargetMesh
 from satsight.sensor.chain import SensorChain
 
@@ -55,6 +60,7 @@ class FrameVariation:
         self.ranges = ranges
         self._hand_placed = scenario.sampler is None
         self._materials = sorted(set(mesh.part_materials))
+        self._band_materials: BandMaterials | None = None
 
     @classmethod
     def of(cls, scenario: Scenario, mesh: TargetMesh) -> FrameVariation | None:
@@ -119,9 +125,20 @@ class FrameVariation:
             return base
         materials = dict(base.mesh.materials)
         for name, draw in draws.materials.items():
-            materials[name] = varied_material(materials[name], draw)
+            materials[name] = varied_material(self.material(name, draw), draw)
         mesh = dataclasses.replace(base.mesh, materials=materials)
         return Renderer(mesh, base.settings, base.variant)
+
+    def material(self, name: str, draw: MaterialDraw) -> Material:
+        """The target's material ``name``, or the library material of its family that the
+        draw swaps it for (made for the scenario's band, named as the part knows it)."""
+        swapped = swapped_name(swap_candidates(name), draw)
+        if swapped is None:
+            return self.mesh.materials[name]
+        if self._band_materials is None:
+            self._band_materials = builtins_from_library(self.scenario.sun.band_nm)
+        chosen = self._band_materials[LIBRARY_PREFIX + swapped]
+        return dataclasses.replace(chosen, name=name)
 
     @staticmethod
     def sensor(base: SensorChain, draws: FrameDraws | None) -> SensorChain:
@@ -135,7 +152,11 @@ class FrameVariation:
         out: dict = {}
         if draws.materials is not None:
             out["materials"] = {
-                name: material_record(varied_material(self.mesh.materials[name], d), d)
+                name: material_record(
+                    varied_material(self.material(name, d), d),
+                    d,
+                    swapped_name(swap_candidates(name), d),
+                )
                 for name, d in draws.materials.items()
             }
         if draws.sun is not None:

@@ -15,6 +15,7 @@ from satsight.randomization.apply import (
     jittered_direction,
     perpendicular_basis,
     roll_transform,
+    swapped_name,
     varied_material,
     varied_sensor,
 )
@@ -117,3 +118,28 @@ def test_attitude_jitter_turns_the_target_about_its_box_centre() -> None:
     off = np.array([1.0, 0.0, 0.0])
     moved = body_from_jittered.apply(center + off) - center
     assert float(angle_between_rad(moved, off)) == pytest.approx(0.05, rel=1e-12)
+
+
+def test_a_swap_picks_each_candidate_for_its_share_of_the_choice() -> None:
+    candidates = ("a", "b", "c")
+    picks = [
+        swapped_name(candidates, MaterialDraw(1.0, 1.0, 0.0, True, u))
+        for u in (0.0, 0.33, 0.34, 0.66, 0.67, 0.999)
+    ]
+    assert picks == ["a", "a", "b", "b", "c", "c"]
+    assert swapped_name(candidates, MaterialDraw(1.0, 1.0, 0.0, False, 0.5)) is None
+    assert swapped_name((), MaterialDraw(1.0, 1.0, 0.0, True, 0.5)) is None
+
+
+def test_families_cover_the_library_once_and_swaps_stay_in_them() -> None:
+    from satsight.scene.material_families import LIBRARY_FAMILIES, swap_candidates
+    from satsight.scene.material_library import list_materials
+
+    listed = [name for names in LIBRARY_FAMILIES.values() for name in names]
+    assert sorted(listed) == sorted(list_materials())
+    assert swap_candidates("mli_gold") == (
+        "aluminium_teflon", "silver_teflon", "beta_cloth", "black_kapton", "ge_black_kapton"
+    )  # fmt: skip
+    assert swap_candidates("library:gold") == ("aluminium", "anodised_aluminium", "silver",
+                                               "titanium")  # fmt: skip
+    assert swap_candidates("cfrp") == () and swap_candidates("panel_substrate") == ()

@@ -124,3 +124,13 @@ def test_earth_draws_pick_every_cloud_pattern_and_the_map_at_its_rate() -> None:
     mapped = np.mean([d.surface == "map" for d in draws])
     assert abs(mapped - 0.7) < Z * math.sqrt(0.7 * 0.3 / N_FRAMES)
     assert all(0.8 <= d.albedo_scale <= 1.2 for d in draws)
+
+
+def test_materials_are_swapped_at_their_probability() -> None:
+    ranges = MaterialRanges(swap_probability=0.3)
+    draws = [draw_materials(ranges, 4, i, ["gold"])["gold"] for i in range(N_FRAMES)]
+    rate = np.mean([d.swap for d in draws])
+    assert abs(rate - 0.3) < Z * math.sqrt(0.3 * 0.7 / N_FRAMES)
+    # The swap draws come after the others: turning swaps off changes no factor.
+    off = draw_materials(MaterialRanges(swap_probability=0.0), 4, 7, ["gold"])["gold"]
+    assert not off.swap and off.roughness_scale == draws[7].roughness_scale

@@ -39,14 +39,18 @@ def _deg(pair: Pair) -> Pair:
 
 
 class MaterialsRandomizeConfig(_Strict):
-    """Per material: factor on its roughness and on its base colour, shift of its IOR."""
+    """Per material: the chance it is swapped for another library material of its family,
+    then factors on its roughness and base colour and a shift of its IOR."""
 
     roughness_scale: Pair = MaterialRanges().roughness_scale
     base_color_scale: Pair = MaterialRanges().base_color_scale
     ior_shift: Pair = MaterialRanges().ior_shift
+    swap_probability: float = MaterialRanges().swap_probability
 
     def build(self) -> MaterialRanges:
-        return MaterialRanges(self.roughness_scale, self.base_color_scale, self.ior_shift)
+        return MaterialRanges(
+            self.roughness_scale, self.base_color_scale, self.ior_shift, self.swap_probability
+        )
 
 
 class SunRandomizeConfig(_Strict):

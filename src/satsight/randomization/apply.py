@@ -47,9 +47,19 @@ def varied_materials(
     }
 
 
-def material_record(material: Material, draw: MaterialDraw) -> dict:
-    """The varied values of one material for the labels (SI, dimensionless)."""
+def swapped_name(candidates: tuple[str, ...], draw: MaterialDraw) -> str | None:
+    """The library material (of ``candidates``, a family's others) that replaces the
+    material, or None (no swap drawn, or no candidate)."""
+    if not (draw.swap and candidates):
+        return None
+    return candidates[min(int(draw.swap_choice * len(candidates)), len(candidates) - 1)]
+
+
+def material_record(material: Material, draw: MaterialDraw, swapped: str | None = None) -> dict:
+    """The varied values of one material for the labels (SI, dimensionless); swapped: the
+    library material it was replaced by first, if any."""
     return {
+        "library_material": swapped,
         "roughness_scale": draw.roughness_scale,
         "base_color_scale": draw.base_color_scale,
         "ior_shift": draw.ior_shift,

@@ -64,11 +64,14 @@ def unit_vector(u: float, v: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class MaterialDraw:
-    """Factors and shift of one material (``MaterialRanges``)."""
+    """Factors and shift of one material (``MaterialRanges``); swap: whether it is first
+    replaced by another of its family, the one at ``swap_choice`` (in [0, 1)) of the list."""
 
     roughness_scale: float
     base_color_scale: float
     ior_shift: float
+    swap: bool = False
+    swap_choice: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -127,11 +130,13 @@ def draw_materials(
 ) -> dict[str, MaterialDraw]:
     out = {}
     for name in sorted(names):
-        u = group_rng(seed, plan_index, "materials", name).random(3)
+        u = group_rng(seed, plan_index, "materials", name).random(5)
         out[name] = MaterialDraw(
             roughness_scale=_uniform(u[0], ranges.roughness_scale),
             base_color_scale=_uniform(u[1], ranges.base_color_scale),
             ior_shift=_uniform(u[2], ranges.ior_shift),
+            swap=bool(u[3] < ranges.swap_probability),
+            swap_choice=float(u[4]),
         )
     return out
 

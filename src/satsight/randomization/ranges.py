@@ -46,16 +46,25 @@ class MaterialRanges:
     base_color_scale: factor on the base colour, the same for the three channels (result
     clipped to 1 per channel, so no material reflects more than it receives).
     ior_shift: added to the index of refraction (result at least 1.05).
+    swap_probability: the chance that the material is first replaced by another library
+    material of its family (``satsight.scene.material_families``; none for a material
+    without a family or alone in it).
     """
 
     roughness_scale: Interval = (0.7, 1.4)
     base_color_scale: Interval = (0.8, 1.2)
     ior_shift: Interval = (-0.1, 0.1)
+    swap_probability: float = 0.25
 
     def __post_init__(self) -> None:
         check_interval("randomize.materials.roughness_scale", self.roughness_scale, 0.0, 10.0)
         check_interval("randomize.materials.base_color_scale", self.base_color_scale, 0.0, 10.0)
         check_interval("randomize.materials.ior_shift", self.ior_shift, -1.0, 1.0)
+        if not 0.0 <= self.swap_probability <= 1.0:
+            raise SatsightError(
+                "randomize.materials.swap_probability must be within [0, 1], got "
+                f"{self.swap_probability:g}"
+            )
 
 
 @dataclass(frozen=True)
