@@ -123,13 +123,7 @@ def test_every_bright_hipparcos_star_has_an_entry():
         )
     )
     bright = hip["hp_mag"] < 9.0
-    u = sa.propagate_directions(
-        hip["ra_rad"][bright],
-        hip["dec_rad"][bright],
-        hip["pm_ra_cosdec_mas_yr"][bright] * MAS_RAD,
-        hip["pm_dec_mas_yr"][bright] * MAS_RAD,
-        24.75,
-    )
+    u = _hipparcos_at_gaia_epoch(hip, bright)
     tree = cKDTree(sa.unit_vectors(catalog.ra_rad, catalog.dec_rad))
     dist, idx = tree.query(u, k=4, distance_upper_bound=5 * ARCSEC_RAD)
     ok = np.isfinite(dist)
@@ -475,18 +469,24 @@ def test_choose_v_rules():
     assert np.allclose(v, [8.0, 8.5, 8.5, 8.0, 8.75, 8.75, 9.0])
 
 
-def _blended_v_near(catalog, hip: dict, use: np.ndarray) -> np.ndarray:
-    """V of the summed light of the catalogue stars within 10 arcsec of each selected
-    Hipparcos star (moved to J2016.0 with its proper motion); inf where there are none."""
-    from scipy.spatial import cKDTree
-
-    u = sa.propagate_directions(
+def _hipparcos_at_gaia_epoch(hip: dict, use: np.ndarray) -> np.ndarray:
+    """(n, 3) unit vectors of the selected Hipparcos stars moved from J1991.25 to Gaia's
+    J2016.0 (24.75 years) with their proper motions."""
+    return sa.propagate_directions(
         hip["ra_rad"][use],
         hip["dec_rad"][use],
         hip["pm_ra_cosdec_mas_yr"][use] * MAS_RAD,
         hip["pm_dec_mas_yr"][use] * MAS_RAD,
         24.75,
     )
+
+
+def _blended_v_near(catalog, hip: dict, use: np.ndarray) -> np.ndarray:
+    """V of the summed light of the catalogue stars within 10 arcsec of each selected
+    Hipparcos star (moved to J2016.0 with its proper motion); inf where there are none."""
+    from scipy.spatial import cKDTree
+
+    u = _hipparcos_at_gaia_epoch(hip, use)
     tree = cKDTree(sa.unit_vectors(catalog.ra_rad, catalog.dec_rad))
     near = tree.query_ball_point(u, 10 * ARCSEC_RAD)
     flux = 10 ** (-0.4 * catalog.v_mag)
