@@ -18,10 +18,9 @@ import math
 
 import numpy as np
 import pytest
-from scipy import integrate
 from scipy.ndimage import binary_dilation
 
-from builders import plate_parts
+from builders import plate_parts, v_mesh, view_integral_to_b
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import look_at_cam_from_body
 from satsight.lighting import sh
@@ -108,26 +107,9 @@ def test_sun_as_sh_on_a_plate_is_the_sh_irradiance(llvm_variant):
 # --- the "V": two plates and one bounce ------------------------------------------------------
 
 
-def _v_mesh():
-    """Plate A in z = 0 (x in [0, 2], normal +z); plate B in x = 0 (z in [0, 2], normal +x)."""
-    a_vertices = np.array([[0, -1, 0], [2, -1, 0], [2, 1, 0], [0, 1, 0]], dtype=float)
-    b_vertices = np.array([[0, -1, 0], [0, 1, 0], [0, 1, 2], [0, -1, 2]], dtype=float)
-    faces = np.array([[0, 1, 2], [0, 2, 3]])
-    mats = {"a_lambert": _lambert("a_lambert", RHO_A), "b_lambert": _lambert("b_lambert", RHO_B)}
-    return merge_parts(
-        [("a", "a_lambert", a_vertices, faces), ("b", "b_lambert", b_vertices, faces)], mats, "v"
-    )
-
-
-def _view_integral_to_b(x: float, y: float) -> float:
-    """Integral over plate B of cos(theta_x) cos(theta_q) / r^2 dA seen from (x, y, 0) on A."""
-
-    def integrand(yb, zb):
-        r2 = x * x + (yb - y) ** 2 + zb * zb
-        return x * zb / (r2 * r2)
-
-    value, _ = integrate.dblquad(integrand, 0.0, 2.0, -1.0, 1.0, epsabs=1e-10, epsrel=1e-8)
-    return value
+def _lambert_v():
+    """The V of Lambert plates A (RHO_A) and B (RHO_B), ``builders.v_mesh``."""
+    return v_mesh(_lambert("a_lambert", RHO_A), _lambert("b_lambert", RHO_B))
 
 
 def test_v_scene_one_bounce_against_closed_form(llvm_variant):
@@ -138,7 +120,7 @@ def test_v_scene_one_bounce_against_closed_form(llvm_variant):
     cam_from_body = look_at_cam_from_body(position, np.array([0.7, 0.0, 0.7]))
     passes = 64
     settings = RenderSettings(environment="off", bounces=1, samples_per_pixel=passes)
-    image = Renderer(_v_mesh(), settings, llvm_variant).render(
+    image = Renderer(_lambert_v(), settings, llvm_variant).render(
         camera, cam_from_body, LightField.sun_only(sun, E_SUN_W_M2), seed=11
     )
     on_a = image.part_id == 1
@@ -153,7 +135,7 @@ def test_v_scene_one_bounce_against_closed_form(llvm_variant):
     assert len(points) > 80
 
     l_b = np.array(RHO_B) * E_SUN_W_M2 * cos_sun / math.pi
-    view = np.array([_view_integral_to_b(px, py) for px, py, _ in points])
+    view = np.array([view_integral_to_b(px, py) for px, py, _ in points])
     direct = np.array(RHO_A) * E_SUN_W_M2 * cos_sun / math.pi
     expected = direct + np.array(RHO_A) / math.pi * view[:, None] * l_b
     rendered = image.radiance_w_m2_sr[v, u]
@@ -215,7 +197,7 @@ def test_same_seed_same_bytes_other_seed_other_noise(llvm_variant):
     light = LightField(
         np.array([1.0, 0.0, 1.0]), E_SUN_W_M2, _constant_environment(5.0) * [1.0, 0.8, 0.6]
     )
-    renderer = Renderer(_v_mesh(), settings, llvm_variant)
+    renderer = Renderer(_lambert_v(), settings, llvm_variant)
     camera = PinholeCamera(focal_length_m=0.02, pixel_pitch_m=15e-6, width_px=32, height_px=32)
     pose = look_at_cam_from_body(np.array([20.0, 6.0, 20.0]), np.array([0.7, 0.0, 0.7]))
     first = renderer.render(camera, pose, light, seed=1).radiance_w_m2_sr

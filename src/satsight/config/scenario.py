@@ -171,6 +171,7 @@ class RenderConfig(_Strict):
     indirect_min_roughness: float = Field(default=0.35, ge=0.0, le=1.0)
     integrate_footprint: bool = True
     texture_filter: Literal[TEXTURE_FILTERS] = "mip"
+    sunlit_sampling: bool = True
     variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
     # Motion during the exposure (``satsight.frame_motion``): "auto" renders time samples
     # over the exposure when the target's box corners move more than 0.1 px across it.
@@ -189,6 +190,7 @@ class RenderConfig(_Strict):
             indirect_min_roughness=self.indirect_min_roughness,
             integrate_footprint=self.integrate_footprint,
             texture_filter=self.texture_filter,
+            sunlit_sampling=self.sunlit_sampling,
         )
 
 

@@ -40,7 +40,9 @@ class FrameValues:
     ``environment="unshadowed"`` on a flat-shaded mesh; else None. anchored_rays: for the
     footprint pass (``render.footprint``), entry index (UInt32) -> (start Point3f in render
     space, unit direction Vector3f in the body frame) of rays anchored at the target, which
-    then replace the pixels' camera rays (one path each); else None.
+    then replace the pixels' camera rays (one path each); else None. sunlit_tables: the
+    frame's tables for sampling the sunlit target (``satsight.render.sunlit_surfaces``),
+    or None where no vertex samples it.
     """
 
     R_body_from_cam: object
@@ -63,3 +65,4 @@ class FrameValues:
     pixel_position_px: Callable
     diffuse_env_table: object = None
     anchored_rays: Callable | None = None
+    sunlit_tables: object = None

@@ -60,7 +60,9 @@ class PathVertex:
     normal_smooth: unit interpolated corner normal on the side of wo, the horizon of light
     sources, or None where it is normal_geo. lift_m: vector from the point to the smooth
     surface, where shadow rays towards light sources start, or None (see
-    ``satsight.render.target_geometry``).
+    ``satsight.render.target_geometry``). sun_weight: the multiple-importance weight of the
+    Sun's light at this vertex (Float), where the path's previous vertex also sampled the
+    sunlit surfaces (``satsight.render.sunlit_surfaces``); None for 1.
     """
 
     point_m: object
@@ -74,6 +76,7 @@ class PathVertex:
     throughput: object
     normal_smooth: object = None
     lift_m: object = None
+    sun_weight: object = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,10 +85,11 @@ class BounceRay:
 
     meets_target: Bool, the ray meets the target again. origin_m: its origin, off the
     surface. direction: its unit direction. throughput: the path's weight after the vertex
-    (Color3f).
+    (Color3f). pdf: the density the direction was sampled with, sr^-1.
     """
 
     meets_target: object
     origin_m: object
     direction: object
     throughput: object
+    pdf: object = None

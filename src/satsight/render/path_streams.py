@@ -42,6 +42,12 @@ def texture_segment() -> int:
     return 2000
 
 
+def sunlit_segment(depth: int) -> int:
+    """Random-stream segment of the sunlit-surface sample at path vertex ``depth`` (the
+    point, its visibility and its shadow ray)."""
+    return 3000 + depth
+
+
 def bounce_segment(depth: int) -> int:
     """Random-stream segment of the bounce ray that leaves path vertex ``depth``."""
     return 2 + 2 * depth

@@ -6,7 +6,9 @@ diffuse part from its SH convolution (``environment="unshadowed"``), the Earth a
 Moon by one body-light sample (``environment="sampled"``), and one BRDF-sampled ray that
 picks up the environment where it leaves the target and continues the path where it meets
 the target again (throughput f cos / pdf). Body-light and BRDF samples of the bodies are
-weighted by multiple importance sampling (power heuristic).
+weighted by multiple importance sampling (power heuristic). A vertex whose path goes on
+also samples a point of the sunlit target and adds the Sun's light it reflects, weighted
+against the bounce ray's way to that light (``satsight.render.sunlit_surfaces``).
 """
 
 from __future__ import annotations
@@ -20,8 +22,10 @@ from satsight.render.path_streams import (
     bounce_segment,
     light_segment,
     shading_segment,
+    sunlit_segment,
 )
 from satsight.render.settings import RenderSettings
+from satsight.render.sunlit_surfaces import SunlitSurfaces
 from satsight.render.surface import SurfaceModel
 from satsight.render.target_geometry import TargetGeometry
 
@@ -30,7 +34,9 @@ class PathTracer:
     """The light paths of one renderer.
 
     surface: the parts' reflection models at the first vertex; surface_indirect: those at
-    vertices reached by a bounce (roughness floored, path regularisation).
+    vertices reached by a bounce (roughness floored, path regularisation). sunlit: the
+    target's faces as sources of reflected sunlight, or None to leave that light to the
+    bounce rays alone.
     """
 
     def __init__(
@@ -42,6 +48,7 @@ class PathTracer:
         body_light: BodyLight,
         environment: EnvironmentLight,
         streams: PathStreams,
+        sunlit: SunlitSurfaces | None = None,
     ) -> None:
         import drjit as dr
         import mitsuba as mi
@@ -54,6 +61,7 @@ class PathTracer:
         self._body_light = body_light
         self._environment = environment
         self._streams = streams
+        self._sunlit = sunlit
 
     def trace(self, frame: FrameValues, start: CameraRayHit, path: PathStart, lane_sum) -> None:
         """Follow the light paths ``path`` that start at the camera rays' surfaces
@@ -95,7 +103,7 @@ class PathTracer:
             if ray is None:
                 return
             hit = ray.meets_target
-            dr.eval(lane_sum, hit, ray.origin_m, ray.direction, ray.throughput)
+            dr.eval(lane_sum, hit, ray.origin_m, ray.direction, ray.throughput, ray.pdf)
             selected = dr.compress(hit)
             if dr.width(selected) == 0:
                 return
@@ -104,9 +112,9 @@ class PathTracer:
             lane = pixel if same else dr.gather(mi.UInt32, lane, selected)
             if dr.width(pass_index) > 1:
                 pass_index = dr.gather(mi.UInt32, pass_index, selected)
-            origin, direction, throughput = (
+            origin, direction, throughput, pdf = (
                 dr.gather(type(v), v, selected)
-                for v in (ray.origin_m, ray.direction, ray.throughput)
+                for v in (ray.origin_m, ray.direction, ray.throughput, ray.pdf)
             )
             # The same stream as the occlusion test, so a partly transparent surface lets
             # the ray through (or not) exactly as it did there.
@@ -117,25 +125,112 @@ class PathTracer:
                 mi.Bool(True),
                 lambda layer, opacity=opacity: opacity.next_float32(),
             )
-            wo = -direction
-            ng = found.surface.normal_geo
-            shade = self._geometry.shading(found.surface, found.hit, wo)
-            vertex = PathVertex(
-                point_m=found.surface.point_m,
-                normal=shade.normal,
-                normal_geo=shade.normal_facing,
-                uv=shade.uv,
-                mip_level=shade.mip_level,
-                part=found.surface.part,
-                wo=wo,
-                face_side=self._geometry.face_side(found.surface.face, ng, wo),
-                throughput=throughput,
-                normal_smooth=shade.normal_smooth,
-                lift_m=shade.lift_m,
-            )
+            sun_weight = None
+            if self._samples_sunlit(frame, depth):
+                # The bounce ray's share of the Sun's light at the surface it meets.
+                pdf_light = self._sunlit_pdf(frame, found.surface, found.distance_m, direction)
+                sun_weight = _power_heuristic(pdf, pdf_light)
+            vertex = self._vertex(found.surface, found.hit, -direction, throughput, sun_weight)
             # Occlusion test and hit search agree but for rounding at edges; a path whose
             # ray finds no surface after all ends there.
             active = found.hit
+
+    def _samples_sunlit(self, frame: FrameValues, depth: int) -> bool:
+        """Whether vertex ``depth`` samples the sunlit surfaces (its path goes on)."""
+        return (
+            self._sunlit is not None
+            and frame.sunlit_tables is not None
+            and depth < self.settings.bounces
+        )
+
+    def _sunlit_pdf(self, frame: FrameValues, surface, distance_m, direction):
+        """Solid-angle density, seen from a ray's origin, with which the sunlit-surface
+        sample picks the point ``surface`` at ``distance_m`` along unit ``direction``."""
+        dr = self._dr
+        cos_q = dr.abs(dr.dot(surface.normal_geo, direction))
+        pdf_area = self._sunlit.pdf_area(frame.sunlit_tables, surface.face, True)
+        return pdf_area * dr.square(distance_m) / dr.maximum(cos_q, 1e-6)
+
+    def _vertex(self, surface, hit, wo, throughput, sun_weight=None) -> PathVertex:
+        """The path vertex at the surface point ``surface`` (lanes ``hit``) seen from unit
+        direction ``wo``."""
+        shade = self._geometry.shading(surface, hit, wo)
+        return PathVertex(
+            point_m=surface.point_m,
+            normal=shade.normal,
+            normal_geo=shade.normal_facing,
+            uv=shade.uv,
+            mip_level=shade.mip_level,
+            part=surface.part,
+            wo=wo,
+            face_side=self._geometry.face_side(surface.face, surface.normal_geo, wo),
+            throughput=throughput,
+            normal_smooth=shade.normal_smooth,
+            lift_m=shade.lift_m,
+            sun_weight=sun_weight,
+        )
+
+    def _sun_light(self, frame, surface, vertex, params, shading, wo_local, active, shadow_rng):
+        """The Sun's light a vertex reflects towards ``wo`` (Color3f, W m^-2 sr^-1): one
+        shadow ray from the smooth surface, no light from below that surface's horizon
+        (Hanika 2021, see target_geometry)."""
+        mi, dr = self._mi, self._dr
+        origin = vertex.point_m + vertex.normal_geo * frame.ray_offset_m
+        light_origin = origin if vertex.lift_m is None else origin + vertex.lift_m
+        horizon = vertex.normal_geo if vertex.normal_smooth is None else vertex.normal_smooth
+        wi = frame.sun_direction_body
+        wi_local = shading.to_local(wi)
+        lit = active & (wi_local.z > 0.0) & (frame.sun_irradiance_w_m2 > 0.0)
+        if self._geometry.shading_normals:  # no light from below the surface
+            lit &= dr.dot(wi, horizon) > 0.0
+        lit &= self._geometry.visible(light_origin, wi, lit, shadow_rng)
+        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local, smooth_horizon=True)
+        irradiance = frame.sun_irradiance_w_m2 * wi_local.z
+        return dr.select(lit, (f_diffuse + f_specular) * irradiance, mi.Color3f(0.0))
+
+    def _sunlit_sample(
+        self, frame, surface, params, shading, origin, wo_local, active, depth: int, rng
+    ):
+        """The Sun's light that one sampled point q of the target reflects to a vertex, and
+        the vertex reflects towards ``wo`` (Color3f, before the path's throughput),
+        weighted against the bounce ray's way to it (power heuristic). q's reflection is
+        that of a vertex reached by a bounce (``surface_indirect``), as on the bounce ray's
+        path."""
+        mi, dr = self._mi, self._dr
+        tables = frame.sunlit_tables
+        numbers = rng(sunlit_segment(depth))
+        face, u, v, pdf_area = self._sunlit.sample(
+            tables, numbers.next_float32(), numbers.next_float32(), numbers.next_float32()
+        )
+        q = self._geometry.surface_at(face, u, v, active)
+        to_q = q.point_m - origin
+        distance_m = dr.norm(to_q)
+        wi = to_q / dr.maximum(distance_m, 1e-30)
+        wi_local = shading.to_local(wi)
+        cos_q = dr.abs(dr.dot(q.normal_geo, wi))
+        ok = active & (wi_local.z > 0.0) & (pdf_area > 0.0) & (cos_q > 1e-6)
+        f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
+        f = f_diffuse + f_specular
+        ok &= dr.max(f) > 0.0
+        # q is seen from the vertex: nothing on the segment short of q.
+        ok &= self._geometry.visible(origin, wi, ok, numbers, max_distance_m=distance_m * 0.9999)
+        at_q = self._vertex(q, ok, -wi, mi.Color3f(1.0))
+        shading_q = mi.Frame3f(at_q.normal)
+        params_q = self._surface_indirect.at(q.part, ok, at_q, shading_q)
+        light = self._sun_light(
+            frame,
+            self._surface_indirect,
+            at_q,
+            params_q,
+            shading_q,
+            shading_q.to_local(at_q.wo),
+            ok,
+            numbers,
+        )
+        pdf_light = pdf_area * dr.square(distance_m) / cos_q
+        weight = _power_heuristic(pdf_light, surface.pdf(params, wi_local, wo_local))
+        value = f * light * (wi_local.z * weight / dr.maximum(pdf_light, 1e-30))
+        return dr.select(ok, value, mi.Color3f(0.0))
 
     def _body_light_sample(
         self, frame, surface, params, shading, origin, wo_local, active, depth: int, rng, ld
@@ -176,24 +271,29 @@ class PathTracer:
         shading = mi.Frame3f(n)
         wo_local = shading.to_local(wo)
         origin = p + vertex.normal_geo * frame.ray_offset_m  # off the geometric surface
-        # Shadow rays towards light sources start on the smooth surface, and light from
-        # below that surface's horizon is absent (Hanika 2021, see target_geometry).
+        # Shadow rays towards light sources start on the smooth surface (Hanika 2021, see
+        # target_geometry).
         light_origin = origin if vertex.lift_m is None else origin + vertex.lift_m
-        horizon = vertex.normal_geo if vertex.normal_smooth is None else vertex.normal_smooth
         params = surface.at(part, active, vertex, shading)  # gathered once per surface hit
         radiance = mi.Color3f(0.0)
         if s.sun == "delta":
-            wi = frame.sun_direction_body
-            wi_local = shading.to_local(wi)
-            lit = active & (wi_local.z > 0.0) & (frame.sun_irradiance_w_m2 > 0.0)
-            if self._geometry.shading_normals:  # no light from below the surface
-                lit &= dr.dot(wi, horizon) > 0.0
-            lit &= self._geometry.visible(light_origin, wi, lit, rng(shading_segment(depth)))
-            f_diffuse, f_specular = surface.eval_parts(
-                params, wi_local, wo_local, smooth_horizon=True
+            sun = self._sun_light(
+                frame,
+                surface,
+                vertex,
+                params,
+                shading,
+                wo_local,
+                active,
+                rng(shading_segment(depth)),
             )
-            irradiance = frame.sun_irradiance_w_m2 * wi_local.z
-            radiance += dr.select(lit, (f_diffuse + f_specular) * irradiance, 0.0)
+            if vertex.sun_weight is not None:
+                sun = sun * vertex.sun_weight
+            radiance += sun
+        if self._samples_sunlit(frame, depth):
+            radiance += self._sunlit_sample(
+                frame, surface, params, shading, origin, wo_local, active, depth, rng
+            )
         if s.environment == "unshadowed":
             table = frame.diffuse_env_table
             if table is None:  # shading normals: the SH sum at each hit's normal
@@ -249,4 +349,14 @@ class PathTracer:
             origin_m=origin,
             direction=wi,
             throughput=throughput * weight,
+            pdf=pdf,
         )
+
+
+def _power_heuristic(pdf_this, pdf_other):
+    """Multiple-importance weight of a sample drawn with density ``pdf_this`` against one
+    other strategy of density ``pdf_other`` (Veach's power heuristic, exponent 2)."""
+    import drjit as dr
+
+    this = dr.square(pdf_this)
+    return this / dr.maximum(this + dr.square(pdf_other), 1e-30)

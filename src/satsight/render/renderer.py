@@ -58,6 +58,7 @@ from satsight.render.frame_values import FrameValues
 from satsight.render.path_streams import PathStreams
 from satsight.render.path_tracing import PathTracer
 from satsight.render.settings import RenderSettings
+from satsight.render.sunlit_surfaces import SunlitSurfaces
 from satsight.render.surface import SurfaceModel, regularized
 from satsight.render.target_geometry import TargetGeometry
 from satsight.scene.mesh import TargetMesh
@@ -104,6 +105,14 @@ class Renderer:
         surface_indirect.evaluate_tables()
         self._body_light = BodyLight(self._geometry.origin_body_m)
         streams = PathStreams(self.settings.bounces)
+        self._sunlit = None
+        if not self._transparent:
+            self._sunlit = SunlitSurfaces(
+                self._geometry.face_area_m2,
+                self._geometry.face_normal,
+                mesh.face_part_index,
+                materials,
+            )
         self._camera_rays = CameraRays(self.settings, self._geometry, self._body_light, streams)
         self._path_tracer = PathTracer(
             self.settings,
@@ -113,6 +122,7 @@ class Renderer:
             self._body_light,
             self._environment,
             streams,
+            self._sunlit,
         )
 
     @property
@@ -241,6 +251,13 @@ class Renderer:
             pixel_position_px=lambda pixel: (mi.Float(pixel % width), mi.Float(pixel // width)),
             diffuse_env_table=self._environment.diffuse_table(env_sh)
             if s.environment == "unshadowed"
+            else None,
+            sunlit_tables=self._sunlit.frame_tables(light.sun_direction_body)
+            if self._sunlit is not None
+            and s.sunlit_sampling
+            and s.sun == "delta"
+            and s.bounces > 0
+            and light.sun_irradiance_w_m2 > 0.0
             else None,
         )
 

@@ -78,6 +78,7 @@ class RenderSettings:
     indirect_min_roughness: float = 0.35
     integrate_footprint: bool = True
     texture_filter: TextureFilter = "mip"
+    sunlit_sampling: bool = True
 
     def __post_init__(self) -> None:
         problems = []
@@ -103,8 +104,9 @@ class RenderSettings:
             problems.append(f"max_transparent_layers must be in [1, {MAX_TRANSPARENT_LAYERS}]")
         if not (0.0 <= self.indirect_min_roughness <= 1.0):
             problems.append("indirect_min_roughness must be in [0, 1]")
-        if not isinstance(self.integrate_footprint, bool):
-            problems.append("integrate_footprint must be true or false")
+        for key in ("integrate_footprint", "sunlit_sampling"):
+            if not isinstance(getattr(self, key), bool):
+                problems.append(f"{key} must be true or false")
         if problems:
             raise SatsightError("render settings: " + "; ".join(problems))
 

@@ -156,6 +156,9 @@ class TargetGeometry:
         normal = np.cross(e1, e2)
         length = np.linalg.norm(normal, axis=1, keepdims=True)
         normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+        # Host copies for the sunlit-surface sampling tables.
+        self.face_area_m2 = 0.5 * length[:, 0]
+        self.face_normal = normal
 
         mi_mesh = mi.Mesh(mesh.name, len(vertices), len(faces), has_vertex_normals=False)
         params = mi.traverse(mi_mesh)
@@ -403,9 +406,16 @@ class TargetGeometry:
             moving = again & ~opaque
         return RayHit(stopped, dr.select(stopped, t, 0.0), surf)
 
-    def visible(self, origin, direction, active, rng):
-        """Whether a ray from ``origin`` escapes the target (shadow test), Bool."""
+    def visible(self, origin, direction, active, rng, max_distance_m=None):
+        """Whether a ray from ``origin`` escapes the target (shadow test), Bool; with
+        ``max_distance_m`` (Float), whether nothing stops it within that distance."""
+        mi = self._mi
+        ray = mi.Ray3f(origin, direction)
+        if max_distance_m is not None:
+            ray.maxt = max_distance_m
         if not self.transparent:
-            return ~self.scene.ray_test(self._mi.Ray3f(origin, direction), active)
+            return ~self.scene.ray_test(ray, active)
         blocked = self.intersect(origin, direction, active, lambda layer: rng.next_float32())
+        if max_distance_m is not None:
+            return ~(blocked.hit & (blocked.distance_m < max_distance_m))
         return ~blocked.hit
