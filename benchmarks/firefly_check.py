@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/firefly_check.py [--examples fly_around,approach] [--frames 3]
        [--size 512] [--reference-spp 1024] [--reference-supersampling 1]
-       [--settings example|default]
+       [--settings example|default] [--samples-per-pixel N] [--sunlit-sampling on|off]
 
 Each example is rendered at ``size`` px wide (field of view kept: the pixel pitch grows by
 4096 / size) at ``frames`` frames spread evenly over its frame list, with its own render
@@ -29,6 +29,9 @@ not linear in the radiance). Per frame:
   reference, as the root mean square of the ratio over the target; ``..._p90`` its 90th
   percentile. Below 1 the render's noise is under the noise the detector adds anyway.
 * ``render_s``: seconds per frame at the settings (median of the two seeds' renders).
+
+``--samples-per-pixel`` and ``--sunlit-sampling`` change those two settings (the reference
+keeps its own path count).
 
 Runs the package found on ``sys.path``: point PYTHONPATH at another checkout's ``src`` to
 measure that code.
@@ -72,7 +75,9 @@ def firefly_mask(radiance: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
-def _scenario(name: str, size_px: int, default_settings: bool):
+def scenario_at_size(name: str, size_px: int, default_settings: bool, changes: dict | None = None):
+    """The example scenario at size_px wide (field of view kept) and its render settings
+    (the example's or the defaults), with ``changes`` applied."""
     overrides = {
         "camera.width_px": size_px,
         "camera.height_px": round(size_px * PRESET_HEIGHT_PX / PRESET_WIDTH_PX),
@@ -80,7 +85,7 @@ def _scenario(name: str, size_px: int, default_settings: bool):
     }
     scenario = load_scenario(EXAMPLES / f"{name}.yaml", overrides)
     settings = RenderSettings() if default_settings else scenario.render.settings()
-    return scenario, settings
+    return scenario, settings.with_(**(changes or {}))
 
 
 def check_example(
@@ -90,8 +95,9 @@ def check_example(
     reference_spp: int,
     default_settings: bool,
     reference_supersampling: int = 1,
+    changes: dict | None = None,
 ) -> dict:
-    scenario, settings = _scenario(name, size_px, default_settings)
+    scenario, settings = scenario_at_size(name, size_px, default_settings, changes)
     engine = FrameEngine(scenario)
     sensor = engine.sensor
     renderer = Renderer(engine.mesh, settings, scenario.render.variant)
@@ -175,7 +181,14 @@ def main(argv=None) -> None:
     parser.add_argument("--reference-spp", type=int, default=1024)
     parser.add_argument("--reference-supersampling", type=int, default=1)
     parser.add_argument("--settings", choices=("example", "default"), default="example")
+    parser.add_argument("--samples-per-pixel", type=int, default=None)
+    parser.add_argument("--sunlit-sampling", choices=("on", "off"), default=None)
     args = parser.parse_args(argv)
+    changes = {}
+    if args.samples_per_pixel is not None:
+        changes["samples_per_pixel"] = args.samples_per_pixel
+    if args.sunlit_sampling is not None:
+        changes["sunlit_sampling"] = args.sunlit_sampling == "on"
     result = [
         check_example(
             name,
@@ -184,6 +197,7 @@ def main(argv=None) -> None:
             args.reference_spp,
             args.settings == "default",
             args.reference_supersampling,
+            changes,
         )
         for name in args.examples.split(",")
     ]
