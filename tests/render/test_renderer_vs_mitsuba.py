@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from builders import v_mesh
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import look_at_cam_from_body
 from satsight.lighting.light_field import LightField
@@ -131,24 +132,13 @@ def _lambert(name, rgb) -> Material:
     return Material(name, rgb, metallic=0.0, roughness=1.0, ior=1.0)
 
 
-def _v_mesh(material_a: Material, material_b: Material) -> TargetMesh:
-    a = np.array([[0, -1, 0], [2, -1, 0], [2, 1, 0], [0, 1, 0]], dtype=float)
-    b = np.array([[0, -1, 0], [0, 1, 0], [0, 1, 2], [0, -1, 2]], dtype=float)
-    faces = np.array([[0, 1, 2], [0, 2, 3]])
-    return merge_parts(
-        [("a", material_a.name, a, faces), ("b", material_b.name, b, faces)],
-        {material_a.name: material_a, material_b.name: material_b},
-        "v",
-    )
-
-
 V_CAMERA = PinholeCamera(focal_length_m=0.0125, pixel_pitch_m=15e-6, width_px=40, height_px=40)
 V_POSE = look_at_cam_from_body(np.array([18.0, -9.0, 18.0]), np.array([0.7, 0.0, 0.7]))
 
 
 @pytest.mark.slow
 def test_lambert_v_two_bounces_matches_mitsuba_path(llvm_variant, tmp_path):
-    mesh = _v_mesh(_lambert("a_red", (0.8, 0.3, 0.2)), _lambert("b_white", (0.9, 0.9, 0.9)))
+    mesh = v_mesh(_lambert("a_red", (0.8, 0.3, 0.2)), _lambert("b_white", (0.9, 0.9, 0.9)))
     settings = RenderSettings(environment="sampled", bounces=2, samples_per_pixel=SATSIGHT_SAMPLES)
     mean_relative, ratio = _compare(mesh, V_CAMERA, V_POSE, settings, tmp_path)
     assert mean_relative <= MEAN_RELATIVE_TOLERANCE, mean_relative
@@ -158,7 +148,7 @@ def test_lambert_v_two_bounces_matches_mitsuba_path(llvm_variant, tmp_path):
 @pytest.mark.slow
 def test_rough_conductor_v_matches_mitsuba_path(llvm_variant, tmp_path):
     metal = Material("mirror_metal", (1.0, 1.0, 1.0), metallic=1.0, roughness=0.6, ior=1.5)
-    mesh = _v_mesh(metal, _lambert("b_green", (0.3, 0.8, 0.4)))
+    mesh = v_mesh(metal, _lambert("b_green", (0.3, 0.8, 0.4)))
     settings = RenderSettings(
         environment="sampled", bounces=2, samples_per_pixel=SATSIGHT_SAMPLES, ggx_masking="smith"
     )
