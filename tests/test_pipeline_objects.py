@@ -158,13 +158,20 @@ def test_a_scenario_without_objects_dumps_without_the_key() -> None:
     assert with_plate.model_dump(mode="json")["objects"][0]["debris"]["count"] == 3
 
 
-def _bop_export(scenario, folder) -> tuple[dict, np.ndarray, np.ndarray, dict]:
-    """A one-frame dataset of ``scenario`` exported to BOP: the frame's record, its BOP
-    ``mask`` and ``mask_visib`` and its scene_gt_info entry."""
+def _export(scenario, folder, export_format: str) -> dict:
+    """Generate a one-frame dataset of ``scenario`` in ``folder/dataset``, export it to
+    ``folder/export_format`` (every frame in train); the frame's record."""
     dataset = folder / "dataset"
     assert generate_dataset(scenario, dataset).complete
     record = json.loads((dataset / "labels.json").read_text(encoding="utf-8"))["frames"][0]
-    export_dataset(dataset, folder / "bop", "bop", SplitRule((1.0, 0.0, 0.0), seed=0))
+    export_dataset(dataset, folder / export_format, export_format, SplitRule((1.0, 0.0, 0.0)))
+    return record
+
+
+def _bop_export(scenario, folder) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+    """A one-frame dataset of ``scenario`` exported to BOP: the frame's record, its BOP
+    ``mask`` and ``mask_visib`` and its scene_gt_info entry."""
+    record = _export(scenario, folder, "bop")
     scene = folder / "bop" / "train" / "000000"
     mask = read_png(scene / "mask" / "000000_000000.png") > 0
     visib = read_png(scene / "mask_visib" / "000000_000000.png") > 0
@@ -214,3 +221,55 @@ def test_randomised_materials_keep_the_objects_in_the_scene(plain, tmp_path) -> 
     assert set(record["randomized"]) == {"materials"}
     assert np.array_equal(arrays.object_id, plain_arrays.object_id)
     assert np.count_nonzero(arrays.object_id == 2) > 50
+
+
+@pytest.mark.filterwarnings(
+    "ignore:__array__ implementation doesn't accept a copy keyword:DeprecationWarning"
+)
+def test_the_coco_export_annotates_every_object_it_sees(plain, tmp_path) -> None:
+    """A plate partly hides the target: pycocotools reads two categories (the target with
+    its keypoints, the plate without), and the image's two annotations decode to the
+    object-id image's pixels of each (the target's visible pixels); their ids are
+    image id x 256 + object id; COCOeval scores the annotations given back as detections
+    AP 1 for boxes and masks in both categories."""
+    from pycocotools import mask as mask_utils
+    from pycocotools.coco import COCO
+    from pycocotools.cocoeval import COCOeval
+
+    engine, frame = plain
+    center = engine.mesh.center_m
+    camera_body = frame.cam_from_body.inverse().t_a_from_b_m
+    to_camera = (camera_body - center) / np.linalg.norm(camera_body - center)
+    occluded = _with_plate(tmp_path, center + np.array([0.0, 0.5, 0.3]), to_camera, 12.0)
+    record = _export(occluded.scenario, tmp_path, "coco")
+    ids = read_png(tmp_path / "dataset" / record["files"]["object_id_png"])
+    data = COCO(str(tmp_path / "coco" / "annotations" / "instances_train.json"))
+    target, plate = data.loadCats([1, 2])
+    assert plate["name"] == "plate" and plate["supercategory"] == "object"
+    assert plate["keypoints"] == [] and len(target["keypoints"]) > 0
+    annotations = {a["category_id"]: a for a in data.loadAnns(data.getAnnIds(imgIds=[1]))}
+    assert set(annotations) == {1, 2}
+    for object_id, annotation in annotations.items():
+        assert annotation["id"] == 256 + object_id
+        seen = ids == object_id
+        assert np.array_equal(mask_utils.decode(data.annToRLE(annotation)) > 0, seen)
+        assert annotation["area"] == np.count_nonzero(seen)
+        assert annotation["bbox"] == mask_utils.toBbox(data.annToRLE(annotation)).tolist()
+    assert annotations[1]["area"] == record["occlusion"]["visible_pixel_count"]
+    assert annotations[2]["num_keypoints"] == 0 and annotations[1]["num_keypoints"] > 0
+    for iou_type in ("bbox", "segm"):
+        detections = [
+            {
+                "image_id": a["image_id"],
+                "category_id": a["category_id"],
+                "score": 1.0,
+                "bbox": a["bbox"],
+                "segmentation": a["segmentation"],
+            }
+            for a in annotations.values()
+        ]
+        evaluator = COCOeval(data, data.loadRes(detections), iou_type)
+        evaluator.evaluate()
+        evaluator.accumulate()
+        evaluator.summarize()
+        assert evaluator.stats[0] == pytest.approx(1.0, abs=1e-12)

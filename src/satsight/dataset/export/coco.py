@@ -38,9 +38,17 @@ Pixel conventions:
 Segmentation: COCO's compressed RLE (``rle.py``), the form pycocotools writes for results
 and reads for ground truth (as MMDetection does, and detectron2 with ``INPUT.MASK_FORMAT
 bitmask``): a few characters per image column the target covers, several times shorter
-than the list of run lengths. satsight renders one target, which only it can
-hide, so its object mask is the visible mask; ``iscrowd`` is 0. An image where the target
-covers no pixel has no annotation.
+than the list of run lengths. Masks are the visible pixels (the object mask: the target
+where nothing hides it); ``iscrowd`` is 0. An image where the target covers no pixel has
+no annotation of it.
+
+Other objects (the scenario's ``objects``): each is a category of its own, id = its object
+id (2, 3, ... in the scenario's order, as in ``masks/*_object_ids.png``), name its name,
+supercategory ``object``, no keypoints; an image has one annotation per object it sees,
+its visible pixels from the object-id image, with ``keypoints`` empty and
+``num_keypoints`` 0 (so COCOeval's keypoint evaluation ignores it). With objects, an
+annotation's id is image_id x 256 + object id (the target's object id is 1), so ids stay
+unique with several annotations per image; without them it is the image id, as before.
 
 The images are written on a few threads with a bounded number in flight; each split's
 ``images`` and ``annotations`` lists are written entry by entry into two part files
@@ -68,6 +76,7 @@ from satsight.dataset.export.source import (
     ExportFrames,
     read_depth_m,
     read_mask,
+    read_object_ids,
     require_file,
 )
 from satsight.dataset.labels import keypoints_visible, mask_bbox_xyxy_px
@@ -77,6 +86,10 @@ from satsight.frames.quaternion import canonical_quaternion, matrix_from_quatern
 
 CATEGORY_ID = 1
 SUPERCATEGORY = "spacecraft"
+#: Supercategory of the scene's other objects (debris, other spacecraft, placed meshes).
+OBJECT_SUPERCATEGORY = "object"
+#: With other objects, annotation id = image id x OBJECT_ID_SPAN + object id (ids < 256).
+OBJECT_ID_SPAN = 256
 #: The category name when the manifest names no target.
 DEFAULT_CATEGORY_NAME = "target"
 #: COCO visibility flags: not labelled (outside the image), labelled but hidden, visible.
@@ -91,6 +104,14 @@ _IN_FLIGHT = 4 * _WORKERS
 def image_id(frame_index: int) -> int:
     """The COCO image id (and annotation id) of a frame: frame_index + 1."""
     return int(frame_index) + 1
+
+
+def annotation_id(frame_index: int, object_id: int, with_objects: bool) -> int:
+    """The id of an annotation: the image id where the dataset has no other objects (one
+    annotation per image), else image id x 256 + object id (1 the target, 2.. objects)."""
+    if not with_objects:
+        return image_id(frame_index)
+    return image_id(frame_index) * OBJECT_ID_SPAN + int(object_id)
 
 
 def image_name(frame_index: int) -> str:
@@ -136,12 +157,14 @@ def coco_keypoints(points_px: np.ndarray, flags: np.ndarray) -> list:
 
 @dataclass(frozen=True)
 class CocoFrameRule:
-    """What every image of a COCO export shares: how images are made, and the target's
-    keypoints in its body frame ((N, 3) metres, or None when the manifest has none)."""
+    """What every image of a COCO export shares: how images are made, the target's
+    keypoints in its body frame ((N, 3) metres, or None when the manifest has none), and
+    the scene's other objects (object id -> name; empty without them)."""
 
     images: ExportImages
     keypoint_count: int
     keypoints_body_m: np.ndarray | None
+    objects: dict[int, str]
 
 
 def _keypoints_body_m(header: dict) -> np.ndarray | None:
@@ -188,13 +211,33 @@ def _check_frame(frame: ExportFrame, rule: CocoFrameRule) -> None:
             )
     if flags is None and "depth_exr" in frame.files:
         require_file(frame, "depth_exr", "the keypoints' visibility")
+    if frame.objects:
+        require_file(frame, "object_id_png", "the other objects' annotations")
+    for object_id, name in frame.objects:
+        known = rule.objects.setdefault(object_id, name)
+        if known != name or not 2 <= object_id < OBJECT_ID_SPAN:
+            raise SatsightError(
+                f"{view} {frame.frame_index} names object id {object_id} '{name}' where "
+                f"other frames name it '{known}'; the dataset is damaged: regenerate it"
+            )
+
+
+def _mask_fields(mask: np.ndarray, box: list[int]) -> dict:
+    """An annotation's box, area, crowd flag and RLE segmentation of a visible mask."""
+    return {
+        "bbox": coco_bbox(box),
+        "area": int(np.count_nonzero(mask)),
+        "iscrowd": 0,
+        "segmentation": encode_rle(mask),
+    }
 
 
 def frame_entries(
     frame: ExportFrame, image_dir: Path, rule: CocoFrameRule
-) -> tuple[dict, dict | None, str]:
-    """Write one image; its COCO image entry, its annotation (None when the target
-    covers no pixel) and where its keypoint visibility came from."""
+) -> tuple[dict, list[dict], str | None]:
+    """Write one image; its COCO image entry, its annotations (the target's where it
+    covers a pixel, then one per other object seen) and where the target's keypoint
+    visibility came from (None without a target annotation)."""
     index = frame.frame_index
     rule.images.write(frame, frame.camera_mode, image_dir / image_name(index), _PURPOSE)
     width, height = frame.size_px
@@ -208,31 +251,50 @@ def frame_entries(
         "t_cam_from_body_m": frame.t_cam_from_body_m.tolist(),
         "K": frame.K.tolist(),
     }
+    with_objects = bool(rule.objects)
+    annotations, source = [], None
     mask = read_mask(frame, _PURPOSE)
     box = mask_bbox_xyxy_px(mask)
-    if box is None:
-        return image, None, FROM_LABELS
-    visible, source = _visibility(frame, rule)
-    flags = keypoint_flags(frame.keypoints_px, frame.size_px, visible)
-    annotation = {
-        "id": image_id(index),
-        "image_id": image_id(index),
-        "category_id": CATEGORY_ID,
-        "bbox": coco_bbox(box),
-        "area": int(np.count_nonzero(mask)),
-        "iscrowd": 0,
-        "segmentation": encode_rle(mask),
-        "keypoints": coco_keypoints(frame.keypoints_px, flags),
-        "num_keypoints": int(np.count_nonzero(flags)),
-    }
-    return image, annotation, source
+    if box is not None:
+        visible, source = _visibility(frame, rule)
+        flags = keypoint_flags(frame.keypoints_px, frame.size_px, visible)
+        annotations.append(
+            {
+                "id": annotation_id(index, 1, with_objects),
+                "image_id": image_id(index),
+                "category_id": CATEGORY_ID,
+                **_mask_fields(mask, box),
+                "keypoints": coco_keypoints(frame.keypoints_px, flags),
+                "num_keypoints": int(np.count_nonzero(flags)),
+            }
+        )
+    if frame.objects:
+        ids = read_object_ids(frame, _PURPOSE)
+        for object_id, _ in frame.objects:
+            seen = ids == object_id
+            object_box = mask_bbox_xyxy_px(seen)
+            if object_box is None:
+                continue
+            annotations.append(
+                {
+                    "id": annotation_id(index, object_id, with_objects),
+                    "image_id": image_id(index),
+                    "category_id": int(object_id),
+                    **_mask_fields(seen, object_box),
+                    "keypoints": [],
+                    "num_keypoints": 0,
+                }
+            )
+    return image, annotations, source
 
 
-def categories(header: dict, keypoint_count: int) -> list[dict]:
-    """The one category: the dataset's target, with its keypoints ``kp_0`` ... and no
-    skeleton."""
+def categories(
+    header: dict, keypoint_count: int, objects: dict[int, str] | None = None
+) -> list[dict]:
+    """The dataset's target, with its keypoints ``kp_0`` ... and no skeleton, then one
+    category per other object of the scene (id = object id, no keypoints)."""
     name = (header.get("target") or {}).get("name") or DEFAULT_CATEGORY_NAME
-    return [
+    out = [
         {
             "id": CATEGORY_ID,
             "name": str(name),
@@ -241,6 +303,17 @@ def categories(header: dict, keypoint_count: int) -> list[dict]:
             "skeleton": [],
         }
     ]
+    for object_id, object_name in sorted((objects or {}).items()):
+        out.append(
+            {
+                "id": int(object_id),
+                "name": str(object_name),
+                "supercategory": OBJECT_SUPERCATEGORY,
+                "keypoints": [],
+                "skeleton": [],
+            }
+        )
+    return out
 
 
 def _join(path: Path, head: dict, parts: dict[str, Path]) -> None:
@@ -276,10 +349,11 @@ def write_coco_split(
         JsonEntries(parts["annotations"], list) as annotations,
     ):
         work = ordered_map(pool, lambda f: frame_entries(f, image_dir, rule), frames, _IN_FLIGHT)
-        for image, annotation, source in work:
+        for image, entries, source in work:
             images.append(image)
-            if annotation is not None:
+            for annotation in entries:
                 annotations.append(annotation)
+            if source is not None:
                 sources[source] += 1
     _join(folder / f"instances_{name}.json", head, parts)
     return sources
@@ -301,7 +375,7 @@ def write_coco(
             if rule is None:  # without keypoints in the manifest, the first frame's count
                 points = frame.keypoints_px
                 count = len(body) if body is not None else len(points if points is not None else ())
-                rule = CocoFrameRule(images, count, body)
+                rule = CocoFrameRule(images, count, body, {})
             _check_frame(frame, rule)
     (root / "annotations").mkdir()
     sources: Counter = Counter()
@@ -315,10 +389,15 @@ def write_coco(
                 "url": "",
             },
             "licenses": [],
-            "categories": categories(header, rule.keypoint_count),
+            "categories": categories(header, rule.keypoint_count, rule.objects),
         }
         sources += write_coco_split(split_frames, root, name, head, rule)
     notes = [images.note(), "segmentation: compressed RLE", "keypoints: pixel centres at integers"]
+    if rule.objects:
+        notes.append(
+            f"{len(rule.objects)} other objects as categories {min(rule.objects)}-"
+            f"{max(rule.objects)} (annotation id = image id x {OBJECT_ID_SPAN} + object id)"
+        )
     if sources[FROM_DEPTH]:
         notes.append(
             f"keypoint visibility of {sources[FROM_DEPTH]} images from their depth (no "

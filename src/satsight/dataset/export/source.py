@@ -42,7 +42,8 @@ class ExportFrame:
     keypoints_px: (N, 2) the target's keypoints in this view's pixels (NaN at or behind
     the camera), or None when the record has none. keypoints_visible: (N,) bool, this
     view's flags, or None when the record has none. keypoints_depth_m: (N,) depth along
-    +z_cam (metres; the same for a crop), or None.
+    +z_cam (metres; the same for a crop), or None. objects: (object_id, name) of each
+    further object of the scene (the record's ``objects``; empty without them).
     """
 
     frame_index: int
@@ -56,6 +57,7 @@ class ExportFrame:
     keypoints_px: np.ndarray | None = None
     keypoints_visible: np.ndarray | None = None
     keypoints_depth_m: np.ndarray | None = None
+    objects: tuple[tuple[int, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -167,6 +169,7 @@ def export_frame(dataset: Dataset, record: dict, crop: bool) -> ExportFrame:
         keypoints_depth_m=None
         if record.get("keypoints_depth_m") is None
         else np.asarray(record["keypoints_depth_m"], dtype=np.float64),
+        objects=tuple((int(o["object_id"]), str(o["name"])) for o in record.get("objects") or ()),
     )
 
 
@@ -209,6 +212,11 @@ def read_amodal_mask(frame: ExportFrame) -> np.ndarray | None:
     if not path.is_file():
         raise SatsightError(f"{path} is missing: the dataset is damaged; regenerate it")
     return _grey(read_png(path), frame, np.uint8) > 0
+
+
+def read_object_ids(frame: ExportFrame, purpose: str) -> np.ndarray:
+    """The view's object ids (H, W) uint8: 0 space, 1 the target, 2.. the objects."""
+    return _grey(read_png(require_file(frame, "object_id_png", purpose)), frame, np.uint8)
 
 
 def read_depth_m(frame: ExportFrame, purpose: str) -> np.ndarray:
