@@ -3,6 +3,7 @@
 Usage: python benchmarks/firefly_check.py [--examples fly_around,approach] [--frames 3]
        [--size 512] [--reference-spp 1024] [--reference-supersampling 1]
        [--settings example|default] [--samples-per-pixel N] [--sunlit-sampling on|off]
+       [--reference paths|seeds]
 
 Each example is rendered at ``size`` px wide (field of view kept: the pixel pitch grows by
 4096 / size) at ``frames`` frames spread evenly over its frame list, with its own render
@@ -31,7 +32,10 @@ not linear in the radiance). Per frame:
 * ``render_s``: seconds per frame at the settings (median of the two seeds' renders).
 
 ``--samples-per-pixel`` and ``--sunlit-sampling`` change those two settings (the reference
-keeps its own path count).
+keeps its own path count). ``--reference seeds`` makes the reference the mean of
+reference-spp / paths renders at the settings themselves with other seeds: at one path per
+pixel they all sample the pixel centres, so the comparison leaves out the aliasing between
+centre and area sampling and counts the Monte Carlo outliers alone.
 
 Runs the package found on ``sys.path``: point PYTHONPATH at another checkout's ``src`` to
 measure that code.
@@ -40,6 +44,7 @@ measure that code.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import statistics
 import time
@@ -88,6 +93,26 @@ def scenario_at_size(name: str, size_px: int, default_settings: bool, changes: d
     return scenario, settings.with_(**(changes or {}))
 
 
+def _mean_render(renderer: Renderer, view: tuple, seeds, margin_px: int):
+    """The frame rendered with each seed, its radiance (and margin ring) averaged."""
+    total = ring = first = None
+    count = 0
+    for seed in seeds:
+        image = renderer.render(*view, seed=seed, margin_px=margin_px)
+        rad = image.radiance_w_m2_sr.astype(np.float64)
+        total = rad if total is None else total + rad
+        if image.margin_radiance_w_m2_sr is not None:
+            margin = image.margin_radiance_w_m2_sr.astype(np.float64)
+            ring = margin if ring is None else ring + margin
+        first = first or image
+        count += 1
+    return dataclasses.replace(
+        first,
+        radiance_w_m2_sr=(total / count).astype(np.float32),
+        margin_radiance_w_m2_sr=None if ring is None else (ring / count).astype(np.float32),
+    )
+
+
 def check_example(
     name: str,
     frames: int,
@@ -96,6 +121,7 @@ def check_example(
     default_settings: bool,
     reference_supersampling: int = 1,
     changes: dict | None = None,
+    reference_mode: str = "paths",
 ) -> dict:
     scenario, settings = scenario_at_size(name, size_px, default_settings, changes)
     engine = FrameEngine(scenario)
@@ -122,7 +148,15 @@ def check_example(
             )
             times.append(time.perf_counter() - start)
         start = time.perf_counter()
-        ref = reference.render(engine.camera, pose, light, seed=seed + 2, margin_px=margin)
+        if reference_mode == "paths":
+            ref = reference.render(engine.camera, pose, light, seed=seed + 2, margin_px=margin)
+        else:  # the mean of renders at the settings themselves, other seeds
+            ref = _mean_render(
+                renderer,
+                (engine.camera, pose, light),
+                range(seed + 100, seed + 100 + max(1, reference_spp // settings.passes)),
+                margin,
+            )
         reference_s = time.perf_counter() - start
         mask = ref.object_mask
         if not mask.any():
@@ -183,6 +217,7 @@ def main(argv=None) -> None:
     parser.add_argument("--settings", choices=("example", "default"), default="example")
     parser.add_argument("--samples-per-pixel", type=int, default=None)
     parser.add_argument("--sunlit-sampling", choices=("on", "off"), default=None)
+    parser.add_argument("--reference", choices=("paths", "seeds"), default="paths")
     args = parser.parse_args(argv)
     changes = {}
     if args.samples_per_pixel is not None:
@@ -198,6 +233,7 @@ def main(argv=None) -> None:
             args.settings == "default",
             args.reference_supersampling,
             changes,
+            args.reference,
         )
         for name in args.examples.split(",")
     ]

@@ -78,9 +78,11 @@ def _unit(v) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-@pytest.fixture(scope="module")
-def renderer():
-    settings = RenderSettings(environment="sampled", bounces=0, samples_per_pixel=256)
+@pytest.fixture(scope="module", params=[1, 4], ids=["1_light_sample", "4_light_samples"])
+def renderer(request):
+    settings = RenderSettings(
+        environment="sampled", bounces=0, samples_per_pixel=256, light_samples=request.param
+    )
     return Renderer(_plate_mesh(), settings)
 
 

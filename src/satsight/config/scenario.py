@@ -172,6 +172,7 @@ class RenderConfig(_Strict):
     integrate_footprint: bool = True
     texture_filter: Literal[TEXTURE_FILTERS] = "mip"
     sunlit_sampling: bool = True
+    light_samples: int = Field(default=2, ge=1, le=64)
     variant: Literal["auto", "llvm_ad_rgb", "cuda_ad_rgb"] = "auto"
     # Motion during the exposure (``satsight.frame_motion``): "auto" renders time samples
     # over the exposure when the target's box corners move more than 0.1 px across it.
@@ -191,6 +192,7 @@ class RenderConfig(_Strict):
             integrate_footprint=self.integrate_footprint,
             texture_filter=self.texture_filter,
             sunlit_sampling=self.sunlit_sampling,
+            light_samples=self.light_samples,
         )
 
 

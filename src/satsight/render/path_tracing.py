@@ -129,7 +129,8 @@ class PathTracer:
             if self._samples_sunlit(frame, depth):
                 # The bounce ray's share of the Sun's light at the surface it meets.
                 pdf_light = self._sunlit_pdf(frame, found.surface, found.distance_m, direction)
-                sun_weight = _power_heuristic(pdf, pdf_light)
+                count = self._light_count(depth)
+                sun_weight = _power_heuristic(pdf, count * pdf_light)
             vertex = self._vertex(found.surface, found.hit, -direction, throughput, sun_weight)
             # Occlusion test and hit search agree but for rounding at edges; a path whose
             # ray finds no surface after all ends there.
@@ -142,6 +143,12 @@ class PathTracer:
             and frame.sunlit_tables is not None
             and depth < self.settings.bounces
         )
+
+    def _light_count(self, depth: int) -> int:
+        """Light samples (of the sunlit surfaces, of the Earth and the Moon) at vertex
+        ``depth``: ``light_samples`` at the camera ray's surface, where the light a pixel
+        shows is decided, one further on."""
+        return self.settings.light_samples if depth == 0 else 1
 
     def _sunlit_pdf(self, frame: FrameValues, surface, distance_m, direction):
         """Solid-angle density, seen from a ray's origin, with which the sunlit-surface
@@ -191,14 +198,27 @@ class PathTracer:
     def _sunlit_sample(
         self, frame, surface, params, shading, origin, wo_local, active, depth: int, rng
     ):
-        """The Sun's light that one sampled point q of the target reflects to a vertex, and
-        the vertex reflects towards ``wo`` (Color3f, before the path's throughput),
-        weighted against the bounce ray's way to it (power heuristic). q's reflection is
-        that of a vertex reached by a bounce (``surface_indirect``), as on the bounce ray's
-        path."""
+        """The Sun's light that ``sunlit_samples`` sampled points q of the target reflect
+        to a vertex, and the vertex reflects towards ``wo`` (Color3f, their mean, before
+        the path's throughput), weighted against the bounce ray's way to it (power
+        heuristic, the light samples counted). q's reflection is that of a vertex reached
+        by a bounce (``surface_indirect``), as on the bounce ray's path."""
+        mi = self._mi
+        count = self._light_count(depth)
+        numbers = rng(sunlit_segment(depth))
+        total = mi.Color3f(0.0)
+        for _ in range(count):
+            total += self._sunlit_point(
+                frame, surface, params, shading, origin, wo_local, active, numbers, count
+            )
+        return total * (1.0 / count)
+
+    def _sunlit_point(
+        self, frame, surface, params, shading, origin, wo_local, active, numbers, count: int
+    ):
+        """One light sample of ``_sunlit_sample`` (``count`` of them per vertex)."""
         mi, dr = self._mi, self._dr
         tables = frame.sunlit_tables
-        numbers = rng(sunlit_segment(depth))
         face, u, v, pdf_area = self._sunlit.sample(
             tables, numbers.next_float32(), numbers.next_float32(), numbers.next_float32()
         )
@@ -228,29 +248,49 @@ class PathTracer:
             numbers,
         )
         pdf_light = pdf_area * dr.square(distance_m) / cos_q
-        weight = _power_heuristic(pdf_light, surface.pdf(params, wi_local, wo_local))
+        weight = _power_heuristic(count * pdf_light, surface.pdf(params, wi_local, wo_local))
         value = f * light * (wi_local.z * weight / dr.maximum(pdf_light, 1e-30))
         return dr.select(ok, value, mi.Color3f(0.0))
 
     def _body_light_sample(
         self, frame, surface, params, shading, origin, wo_local, active, depth: int, rng, ld
     ):
-        """Light from the Earth and the Moon by one direction sampled in a body's cone,
-        shadowed by the target, weighted against BRDF sampling (power heuristic)."""
+        """Light from the Earth and the Moon by ``light_samples`` directions (one beyond
+        the camera ray's surface) sampled in a body's cone, shadowed by the target,
+        weighted against BRDF sampling (power heuristic, the light samples counted): their
+        mean. The first direction takes the path's low-discrepancy numbers, the others
+        the light segment's generator."""
+        mi = self._mi
+        count = self._light_count(depth)
+        numbers = rng(light_segment(depth))
+        base = self._streams.light_dims + 3 * depth
+        total = mi.Color3f(0.0)
+        for k in range(count):
+            u = (
+                (ld(base), ld(base + 1), ld(base + 2))
+                if k == 0
+                else (numbers.next_float32(), numbers.next_float32(), numbers.next_float32())
+            )
+            total += self._body_light_direction(
+                frame, surface, params, shading, origin, wo_local, active, numbers, u, count
+            )
+        return total if count == 1 else total * (1.0 / count)
+
+    def _body_light_direction(
+        self, frame, surface, params, shading, origin, wo_local, active, numbers, u, count
+    ):
+        """One direction of ``_body_light_sample`` from the uniform numbers ``u``."""
         mi, dr = self._mi, self._dr
         bodies = frame.bodies
-        base = self._streams.light_dims + 3 * depth
-        wi, pdf_light = self._body_light.sample(
-            bodies, origin, ld(base), ld(base + 1), ld(base + 2)
-        )
+        wi, pdf_light = self._body_light.sample(bodies, origin, *u)
         wi_local = shading.to_local(wi)
         ok = active & (wi_local.z > 0.0) & (pdf_light > 0.0)
         sky, _ = self._body_light.radiance(bodies, origin, wi, ok)
         ok &= dr.max(sky) > 0.0
-        ok &= self._geometry.visible(origin, wi, ok, rng(light_segment(depth)))
+        ok &= self._geometry.visible(origin, wi, ok, numbers)
         f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local, smooth_horizon=True)
         pdf_brdf = surface.pdf(params, wi_local, wo_local)
-        mis = dr.square(pdf_light) / dr.maximum(dr.square(pdf_light) + dr.square(pdf_brdf), 1e-30)
+        mis = _power_heuristic(count * pdf_light, pdf_brdf)
         weight = wi_local.z * mis / dr.maximum(pdf_light, 1e-30)
         return dr.select(ok, (f_diffuse + f_specular) * sky * weight, mi.Color3f(0.0))
 
@@ -339,7 +379,7 @@ class PathTracer:
                 bodies = frame.bodies
                 sky, _ = self._body_light.radiance(bodies, origin, wi, escaped)
                 pdf_light = self._body_light.light_pdf(bodies, origin, wi)
-                mis = dr.square(pdf) / dr.maximum(dr.square(pdf) + dr.square(pdf_light), 1e-30)
+                mis = _power_heuristic(pdf, self._light_count(depth) * pdf_light)
                 radiance += dr.select(escaped, env_weight * sky * mis, 0.0)
         radiance = throughput * radiance
         if last:
