@@ -9,9 +9,10 @@ sampled). For each body:
   rays; float32 places the limb to ~1 m at the Earth);
 * radiance there: rho E max(n . s, 0) / pi with the ellipsoid's normal n (its latitude is
   the geodetic one) and rho the uniform albedo or the albedo map (bilinear texture);
-* light sampling: directions uniform in the cone of the body's bounding sphere seen from the
-  shading point, pdf 1 / (2 pi (1 - cos alpha)), with 1 - cos alpha = sin^2 alpha /
-  (1 + cos alpha) so that the Moon's 0.26 deg cone keeps its precision.
+* light sampling: the Moon by directions uniform in the cone of its bounding sphere seen
+  from the shading point, pdf 1 / (2 pi (1 - cos alpha)), with 1 - cos alpha = sin^2 alpha
+  / (1 + cos alpha) so that its 0.26 deg cone keeps its precision; the Earth by the
+  frame's table of its radiance over its cone (``satsight.render.earth_table``).
 
 See ``satsight.lighting.scene_bodies`` for the model and its numpy twin.
 """
@@ -25,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from satsight.lighting.scene_bodies import BODY_IDS, SceneBody
+from satsight.render import earth_table
+from satsight.render.earth_table import EarthTable
 
 SLOTS = ("earth", "moon")
 _TWO_PI = 2.0 * math.pi
@@ -60,7 +63,8 @@ class BodyFrameValues:
     slots: the Earth's and the Moon's ``BodySlot``. earth_albedo: the Earth slot's albedo
     texture (mi.Texture2f). earth_v_range: the texture's v coordinates of its first and last
     row centres. p_earth: the probability that a light sample picks the Earth (opaque
-    Float). any_lit: whether a body lights the target at all (host bool).
+    Float). any_lit: whether a body lights the target at all (host bool). earth_table:
+    the table the Earth's light samples are drawn from.
     """
 
     slots: tuple[BodySlot, ...]
@@ -68,6 +72,7 @@ class BodyFrameValues:
     earth_v_range: tuple[float, float]
     p_earth: object
     any_lit: bool
+    earth_table: EarthTable
 
 
 class BodyLight:
@@ -154,7 +159,8 @@ class BodyLight:
         p_earth = 0.5 if total == 0.0 else weights[0] / total
         p_earth_value = mi.Float(float(p_earth))
         dr.make_opaque(p_earth_value)
-        return BodyFrameValues(tuple(slots), texture, v_range, p_earth_value, total > 0.0)
+        table = earth_table.earth_table(earth, self._origin_body_m)
+        return BodyFrameValues(tuple(slots), texture, v_range, p_earth_value, total > 0.0, table)
 
     # --- kernels ---------------------------------------------------------------------------
     def _slot_hit(self, slot: BodySlot, origin, direction, active):
@@ -212,29 +218,27 @@ class BodyLight:
         cos_max = dr.safe_sqrt(1.0 - sin2)
         return to_center * dr.rsqrt(distance2), cos_max, sin2 / (1.0 + cos_max)
 
-    def light_pdf(self, values: BodyFrameValues, p, direction):
-        """Solid-angle density of ``sample`` choosing ``direction`` from p."""
-        dr = self._dr
-        total = 0.0
-        for k, share in enumerate((values.p_earth, 1.0 - values.p_earth)):
-            axis, cos_max, one_minus = self._cone(values.slots[k], p)
-            inside = dr.dot(direction, axis) >= cos_max
-            density = dr.select(inside & (one_minus > 0.0), 1.0 / (_TWO_PI * one_minus), 0.0)
-            total = total + share * density
-        return total
-
     def sample(self, values: BodyFrameValues, p, u_choice, u1, u2):
         """A direction towards one body (chosen with probability ``p_earth`` for the
-        Earth), uniform in its bounding cone seen from p, and its density ``light_pdf``."""
+        Earth): from the Earth's radiance table, or uniform in the Moon's bounding cone
+        seen from p; and its density ``light_pdf``."""
         mi, dr = self._mi, self._dr
         earth = u_choice < values.p_earth
-        cones = [self._cone(slot, p) for slot in values.slots]
-        axis = dr.select(earth, cones[0][0], cones[1][0])
-        one_minus = dr.select(earth, cones[0][2], cones[1][2])
+        to_earth, _ = earth_table.sample(values.earth_table, u1, u2)
+        axis, _, one_minus = self._cone(values.slots[1], p)
         one_minus_cos = u1 * one_minus
         cos_t = 1.0 - one_minus_cos
         sin_t = dr.safe_sqrt(one_minus_cos * (2.0 - one_minus_cos))
         sin_p, cos_p = dr.sincos(_TWO_PI * u2)
-        frame = mi.Frame3f(axis)
-        direction = frame.to_world(mi.Vector3f(sin_t * cos_p, sin_t * sin_p, cos_t))
+        to_moon = mi.Frame3f(axis).to_world(mi.Vector3f(sin_t * cos_p, sin_t * sin_p, cos_t))
+        direction = dr.select(earth, to_earth, to_moon)
         return direction, self.light_pdf(values, p, direction)
+
+    def light_pdf(self, values: BodyFrameValues, p, direction):
+        """Solid-angle density of ``sample`` choosing ``direction`` from p."""
+        dr = self._dr
+        axis, cos_max, one_minus = self._cone(values.slots[1], p)
+        inside = dr.dot(direction, axis) >= cos_max
+        moon = dr.select(inside & (one_minus > 0.0), 1.0 / (_TWO_PI * one_minus), 0.0)
+        earth = earth_table.pdf(values.earth_table, direction)
+        return values.p_earth * earth + (1.0 - values.p_earth) * moon
