@@ -168,7 +168,7 @@ class RenderConfig(_Strict):
     bounces: int = Field(default=2, ge=0, le=16)
     samples_per_pixel: int = Field(default=1, ge=1, le=4096)
     supersampling: int = Field(default=1, ge=1, le=8)
-    indirect_min_roughness: float = Field(default=0.35, ge=0.0, le=1.0)
+    indirect_min_roughness: float = Field(default=0.2, ge=0.0, le=1.0)
     integrate_footprint: bool = True
     texture_filter: Literal[TEXTURE_FILTERS] = "mip"
     sunlit_sampling: bool = True

@@ -75,7 +75,7 @@ class RenderSettings:
     samples_per_pixel: int = 1
     supersampling: int = 1
     max_transparent_layers: int = 4
-    indirect_min_roughness: float = 0.35
+    indirect_min_roughness: float = 0.2
     integrate_footprint: bool = True
     texture_filter: TextureFilter = "mip"
     sunlit_sampling: bool = True
