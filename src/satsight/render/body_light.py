@@ -114,8 +114,12 @@ class BodyLight:
             self._textures[key] = (texture, None if body is None else body.albedo_map)
         return self._textures[key][0], np.asarray(data.shape[:2])
 
-    def frame_values(self, bodies: tuple[SceneBody, ...]) -> BodyFrameValues:
-        """Opaque per-frame values of the two slots from the light field's bodies."""
+    def frame_values(
+        self, bodies: tuple[SceneBody, ...], sample_earth: bool = True
+    ) -> BodyFrameValues:
+        """Opaque per-frame values of the two slots from the light field's bodies;
+        sample_earth: build the Earth's radiance table for light samples (else a
+        placeholder: the light paths then draw none)."""
         mi, dr = self._mi, self._dr
         by_name = {b.name: b for b in bodies}
         slots = []
@@ -159,7 +163,7 @@ class BodyLight:
         p_earth = 0.5 if total == 0.0 else weights[0] / total
         p_earth_value = mi.Float(float(p_earth))
         dr.make_opaque(p_earth_value)
-        table = earth_table.earth_table(earth, self._origin_body_m)
+        table = earth_table.earth_table(earth if sample_earth else None, self._origin_body_m)
         return BodyFrameValues(tuple(slots), texture, v_range, p_earth_value, total > 0.0, table)
 
     # --- kernels ---------------------------------------------------------------------------

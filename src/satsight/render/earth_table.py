@@ -142,7 +142,10 @@ def pdf(table: EarthTable, direction):
     import mitsuba as mi
 
     cos_t = dr.dot(direction, table.axis)
-    x = (1.0 - cos_t) / table.one_minus_cos
+    # 1 - cos from the sine (sin^2 / (1 + cos)): exact for the small cone of a far Earth.
+    one_minus = dr.squared_norm(dr.cross(direction, table.axis)) / (1.0 + cos_t)
+    one_minus = dr.select(cos_t > 0.0, one_minus, 1.0 - cos_t)
+    x = one_minus / table.one_minus_cos
     inside = x < 1.0
     row = mi.UInt32(dr.clip(dr.floor(x * ROWS), 0, ROWS - 1))
     phi = dr.atan2(dr.dot(direction, table.bitangent), dr.dot(direction, table.tangent))

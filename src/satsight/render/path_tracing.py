@@ -29,6 +29,10 @@ from satsight.render.sunlit_surfaces import SunlitSurfaces
 from satsight.render.surface import SurfaceModel
 from satsight.render.target_geometry import TargetGeometry
 
+# A sampled point q seen this close to edge-on gives no sample (and the bounce ray's
+# weight there is then 1).
+_MIN_COS_Q = 1e-6
+
 
 class PathTracer:
     """The light paths of one renderer.
@@ -128,7 +132,9 @@ class PathTracer:
             sun_weight = None
             if self._samples_sunlit(frame, depth):
                 # The bounce ray's share of the Sun's light at the surface it meets.
-                pdf_light = self._sunlit_pdf(frame, found.surface, found.distance_m, direction)
+                pdf_light = self._sunlit_pdf(
+                    frame, found.surface, found.distance_m, direction, found.hit
+                )
                 count = self._light_count(depth)
                 sun_weight = _power_heuristic(pdf, count * pdf_light)
             vertex = self._vertex(found.surface, found.hit, -direction, throughput, sun_weight)
@@ -150,13 +156,15 @@ class PathTracer:
         shows is decided, one further on."""
         return self.settings.light_samples if depth == 0 else 1
 
-    def _sunlit_pdf(self, frame: FrameValues, surface, distance_m, direction):
+    def _sunlit_pdf(self, frame: FrameValues, surface, distance_m, direction, hit):
         """Solid-angle density, seen from a ray's origin, with which the sunlit-surface
-        sample picks the point ``surface`` at ``distance_m`` along unit ``direction``."""
+        sample picks the point ``surface`` at ``distance_m`` along unit ``direction``
+        (lanes ``hit``; 0 elsewhere, and where the sample would give up: grazing q)."""
         dr = self._dr
         cos_q = dr.abs(dr.dot(surface.normal_geo, direction))
-        pdf_area = self._sunlit.pdf_area(frame.sunlit_tables, surface.face, True)
-        return pdf_area * dr.square(distance_m) / dr.maximum(cos_q, 1e-6)
+        ok = hit & (cos_q > _MIN_COS_Q)
+        pdf_area = self._sunlit.pdf_area(frame.sunlit_tables, surface.face, ok)
+        return dr.select(ok, pdf_area * dr.square(distance_m) / cos_q, 0.0)
 
     def _vertex(self, surface, hit, wo, throughput, sun_weight=None) -> PathVertex:
         """The path vertex at the surface point ``surface`` (lanes ``hit``) seen from unit
@@ -228,12 +236,14 @@ class PathTracer:
         wi = to_q / dr.maximum(distance_m, 1e-30)
         wi_local = shading.to_local(wi)
         cos_q = dr.abs(dr.dot(q.normal_geo, wi))
-        ok = active & (wi_local.z > 0.0) & (pdf_area > 0.0) & (cos_q > 1e-6)
+        ok = active & (wi_local.z > 0.0) & (pdf_area > 0.0) & (cos_q > _MIN_COS_Q)
         f_diffuse, f_specular = surface.eval_parts(params, wi_local, wo_local)
         f = f_diffuse + f_specular
         ok &= dr.max(f) > 0.0
-        # q is seen from the vertex: nothing on the segment short of q.
-        ok &= self._geometry.visible(origin, wi, ok, numbers, max_distance_m=distance_m * 0.9999)
+        # q is seen from the vertex: nothing on the segment short of q (a relative and an
+        # absolute margin, so that q's own triangle never blocks it).
+        short_m = dr.minimum(distance_m * 0.9999, distance_m - 2.0 * frame.ray_offset_m)
+        ok &= self._geometry.visible(origin, wi, ok, numbers, max_distance_m=short_m)
         at_q = self._vertex(q, ok, -wi, mi.Color3f(1.0))
         shading_q = mi.Frame3f(at_q.normal)
         params_q = self._surface_indirect.at(q.part, ok, at_q, shading_q)

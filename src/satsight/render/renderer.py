@@ -238,7 +238,7 @@ class Renderer:
         }
         env_sh = tuple(mi.Color3f(*(float(v) for v in row)) for row in env)
         dr.make_opaque(*opaque.values(), *env_sh)
-        bodies = self._body_light.frame_values(light.bodies)
+        bodies = self._body_light.frame_values(light.bodies, s.environment == "sampled")
         return FrameValues(
             **opaque,
             env_sh_radiance_w_m2_sr=env_sh,

@@ -105,7 +105,8 @@ class RenderSettings:
             problems.append(f"max_transparent_layers must be in [1, {MAX_TRANSPARENT_LAYERS}]")
         if not (0.0 <= self.indirect_min_roughness <= 1.0):
             problems.append("indirect_min_roughness must be in [0, 1]")
-        if not (isinstance(self.light_samples, int) and 1 <= self.light_samples <= 64):
+        count = self.light_samples
+        if isinstance(count, bool) or not (isinstance(count, int) and 1 <= count <= 64):
             problems.append("light_samples must be an integer in [1, 64]")
         for key in ("integrate_footprint", "sunlit_sampling"):
             if not isinstance(getattr(self, key), bool):

@@ -32,6 +32,8 @@ import numpy as np
 
 from satsight.scene.materials import Material
 
+#: The face choice's uniform numbers are multiples of 1 / _U_STEPS (PCG32 next_float32).
+_U_STEPS = float(2**23)
 # Rec. 709 luminance weights of linear RGB (ITU-R BT.709-6, item 3.2).
 _LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
 
@@ -85,8 +87,11 @@ class SunlitSurfaces:
         """The frame's tables for a Sun in ``sun_direction_body`` (unit, body frame), or
         None where no face reflects sunlight.
 
-        The face probabilities are the differences of the float32 cumulative table the
-        kernels search, so that the density used for the weights is the one sampled."""
+        The face probabilities are those the kernels' search really gives: a face is
+        drawn where the uniform number u < its cumulative value, and u (PCG32
+        ``next_float32``) is a multiple of 2^-23, so face i is drawn with probability
+        (ceil(cdf_i 2^23) - ceil(cdf_(i-1) 2^23)) / 2^23, exactly; a face of 1e-6 of the
+        weight on a million-face mesh is off by up to 10 % otherwise."""
         import mitsuba as mi
 
         weights = self.face_weights(sun_direction_body)
@@ -95,7 +100,8 @@ class SunlitSurfaces:
             return None
         cdf = (np.cumsum(weights) / total).astype(np.float32)
         cdf[-1] = 1.0
-        pmf = np.diff(cdf.astype(np.float64), prepend=0.0)
+        grid = np.ceil(cdf.astype(np.float64) * _U_STEPS)
+        pmf = np.diff(grid, prepend=0.0) / _U_STEPS
         area = self._area_m2
         pdf_area = np.divide(pmf, area, out=np.zeros_like(pmf), where=area > 0.0)
         return SunlitTables(mi.Float(cdf), mi.Float(pdf_area.astype(np.float32)))

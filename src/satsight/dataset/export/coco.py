@@ -214,8 +214,13 @@ def _check_frame(frame: ExportFrame, rule: CocoFrameRule) -> None:
     if frame.objects:
         require_file(frame, "object_id_png", "the other objects' annotations")
     for object_id, name in frame.objects:
+        if not 2 <= object_id < OBJECT_ID_SPAN:
+            raise SatsightError(
+                f"{view} {frame.frame_index} has an object id {object_id} outside 2-"
+                f"{OBJECT_ID_SPAN - 1}; the dataset is damaged: regenerate it"
+            )
         known = rule.objects.setdefault(object_id, name)
-        if known != name or not 2 <= object_id < OBJECT_ID_SPAN:
+        if known != name:
             raise SatsightError(
                 f"{view} {frame.frame_index} names object id {object_id} '{name}' where "
                 f"other frames name it '{known}'; the dataset is damaged: regenerate it"
