@@ -206,7 +206,7 @@ class PathTracer:
     def _sunlit_sample(
         self, frame, surface, params, shading, origin, wo_local, active, depth: int, rng
     ):
-        """The Sun's light that ``sunlit_samples`` sampled points q of the target reflect
+        """The Sun's light that ``light_samples`` sampled points q of the target reflect
         to a vertex, and the vertex reflects towards ``wo`` (Color3f, their mean, before
         the path's throughput), weighted against the bounce ray's way to it (power
         heuristic, the light samples counted). q's reflection is that of a vertex reached
