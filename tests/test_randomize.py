@@ -82,7 +82,9 @@ def _numbers(record: dict, group: str) -> dict[str, float]:
 def test_every_group_varies_from_frame_to_frame_and_is_recorded(engine_records) -> None:
     engine, records, _ = engine_records
     for record in records:
-        assert set(record["randomized"]) == set(GROUPS)
+        # The MLI crinkle is drawn anew each frame (materials.reseed_textures).
+        assert set(record["randomized"]) == {*GROUPS, "textures"}
+        assert record["randomized"]["textures"] == {"reseeded_parts": ["bus_mli"]}
         assert set(record["randomized"]["materials"]) == set(engine.mesh.part_materials)
     for group in GROUPS:
         names = _numbers(records[0], group)
@@ -230,3 +232,18 @@ def test_swapped_materials_come_from_their_family_and_are_rendered(engine_record
     # 4 frames x 9 materials with a family of two or more, each swapped with p = 0.25:
     # none at all would happen with probability 0.75^36 = 3e-5.
     assert swaps > 0
+
+
+def test_each_frame_renders_its_own_crinkle(engine_records) -> None:
+    """The renderers of two frames hold the bus's MLI normal map drawn from each frame's
+    own texture seed: different wrinkles, the other parts' textures the same."""
+    engine, _, _ = engine_records
+    variation = engine.variation
+    meshes = []
+    for plan in (0, 1):
+        draws = variation.draw(plan)
+        meshes.append(variation.renderer(engine.renderer, draws).mesh)
+    k = engine.mesh.part_names.index("bus_mli")
+    first, second = (m.part_textures[k].normal.pixels for m in meshes)
+    assert not np.array_equal(first, second)
+    assert not np.array_equal(first, engine.mesh.part_textures[k].normal.pixels)

@@ -36,6 +36,7 @@ from satsight.scene.material_families import swap_candidates
 from satsight.scene.material_library import LIBRARY_PREFIX
 from satsight.scene.materials import Material
 from satsight.scene.mesh import TargetMesh
+from satsight.scene.procedural_textures import reseedable_parts, reseeded
 from satsight.sensor.chain import SensorChain
 
 
@@ -127,6 +128,8 @@ class FrameVariation:
         for name, draw in draws.materials.items():
             materials[name] = varied_material(self.material(name, draw), draw)
         mesh = dataclasses.replace(base.mesh, materials=materials)
+        if draws.texture_seed is not None:  # the target's parts come first in a scene
+            mesh = reseeded(mesh, draws.texture_seed, reseedable_parts(self.mesh))
         return Renderer(mesh, base.settings, base.variant)
 
     def material(self, name: str, draw: MaterialDraw) -> Material:
@@ -159,6 +162,9 @@ class FrameVariation:
                 )
                 for name, d in draws.materials.items()
             }
+        if draws.texture_seed is not None:
+            names = self.mesh.part_names
+            out["textures"] = {"reseeded_parts": [names[k] for k in reseedable_parts(self.mesh)]}
         if draws.sun is not None:
             out["sun"] = draw_record(draws.sun)
         if draws.earth is not None:

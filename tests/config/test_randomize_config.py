@@ -27,6 +27,14 @@ def test_true_gives_the_default_ranges_and_a_mapping_replaces_only_its_keys() ->
     assert ranges.pose.attitude_jitter_rad == pytest.approx(PoseRanges().attitude_jitter_rad)
 
 
+def test_texture_reseeding_follows_the_materials_group() -> None:
+    """On with the materials group by default; ``reseed_textures: false`` keeps the
+    scenario's textures."""
+    assert RandomizeConfig.model_validate({"materials": True}).build().materials.reseed_textures
+    kept = RandomizeConfig.model_validate({"materials": {"reseed_textures": False}}).build()
+    assert kept.materials.reseed_textures is False
+
+
 @pytest.mark.parametrize(
     ("section", "message"),
     [

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from satsight.errors import SatsightError
 from satsight.randomization.draws import (
     cap_angle_rad,
     draw_earth,
@@ -134,3 +135,22 @@ def test_materials_are_swapped_at_their_probability() -> None:
     # The swap draws come after the others: turning swaps off changes no factor.
     off = draw_materials(MaterialRanges(swap_probability=0.0), 4, 7, ["gold"])["gold"]
     assert not off.swap and off.roughness_scale == draws[7].roughness_scale
+
+
+def test_texture_seeds_come_from_their_own_stream_with_reseeding_on() -> None:
+    """With ``reseed_textures`` every frame draws a texture seed from the stream
+    "randomize.textures" (the same frame the same seed, frames apart), and the other
+    groups' draws do not change; without it, or without the materials group, none."""
+    a = draw_frame(ALL, 7, 12, ["gold"], hand_placed=True)
+    assert a.texture_seed == int(group_rng(7, 12, "textures").integers(0, 2**62))
+    assert a.texture_seed != draw_frame(ALL, 7, 13, ["gold"], True).texture_seed
+    kept = RandomizationRanges(
+        MaterialRanges(reseed_textures=False), SunRanges(), EarthRanges(), SensorRanges(),
+        PoseRanges(),
+    )  # fmt: skip
+    b = draw_frame(kept, 7, 12, ["gold"], hand_placed=True)
+    assert b.texture_seed is None and b.materials == a.materials and b.sun == a.sun
+    only_sun = RandomizationRanges(None, SunRanges(), None, None, None)
+    assert draw_frame(only_sun, 7, 12, [], True).texture_seed is None
+    with pytest.raises(SatsightError, match="reseed_textures must be true or false"):
+        MaterialRanges(reseed_textures=1)

@@ -145,3 +145,29 @@ def test_dish_is_smooth_and_boxes_stay_flat() -> None:
     bus = mesh.face_part_index == mesh.part_names.index("bus_mli")
     assert bent[dish].mean() > 0.9  # the paraboloid's faces (not its thin rim)
     assert not bent[bus].any()
+
+
+def test_reseeding_remakes_the_crinkle_alone_from_its_own_seed() -> None:
+    """``reseeded``: the MLI parts' normal maps are drawn again (other wrinkles, the same
+    stated tilt, the same seed giving the same bytes); every other part keeps its
+    textures (the same objects)."""
+    mesh = generate_satellite("two_wings_dish", seed=3, textures=True)
+    parts = pt.reseedable_parts(mesh)
+    assert [mesh.part_names[k] for k in parts] == ["bus_mli"]
+    a, b, c = pt.reseeded(mesh, 7), pt.reseeded(mesh, 7), pt.reseeded(mesh, 8)
+    (k,) = parts
+    old, new = mesh.part_textures[k].normal.pixels, a.part_textures[k].normal.pixels
+    assert old.shape == new.shape and not np.array_equal(old, new)
+    assert np.array_equal(new, b.part_textures[k].normal.pixels)
+    assert not np.array_equal(new, c.part_textures[k].normal.pixels)
+    assert a.part_textures[k].procedural == "mli_crinkle"
+    for j, textures in enumerate(mesh.part_textures):
+        if j != k:
+            assert a.part_textures[j] is textures
+    assert pt.reseeded(mesh, 7, parts=[]) is mesh
+
+    n = 2.0 * decode(new, "linear") - 1.0
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    slope = np.hypot(n[..., 0], n[..., 1]) / n[..., 2]
+    rms_tilt = math.degrees(math.atan(np.sqrt(np.mean(slope**2))))
+    assert rms_tilt == pytest.approx(pt.MLI_RMS_TILT_DEG, abs=1.0)

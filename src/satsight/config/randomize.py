@@ -40,16 +40,22 @@ def _deg(pair: Pair) -> Pair:
 
 class MaterialsRandomizeConfig(_Strict):
     """Per material: the chance it is swapped for another library material of its family,
-    then factors on its roughness and base colour and a shift of its IOR."""
+    then factors on its roughness and base colour and a shift of its IOR; and whether
+    seeded texture patterns (MLI crinkle) are drawn anew each frame."""
 
     roughness_scale: Pair = MaterialRanges().roughness_scale
     base_color_scale: Pair = MaterialRanges().base_color_scale
     ior_shift: Pair = MaterialRanges().ior_shift
     swap_probability: float = MaterialRanges().swap_probability
+    reseed_textures: bool = MaterialRanges().reseed_textures
 
     def build(self) -> MaterialRanges:
         return MaterialRanges(
-            self.roughness_scale, self.base_color_scale, self.ior_shift, self.swap_probability
+            self.roughness_scale,
+            self.base_color_scale,
+            self.ior_shift,
+            self.swap_probability,
+            self.reseed_textures,
         )
 
 

@@ -116,13 +116,16 @@ class PoseDraw:
 
 @dataclass(frozen=True)
 class FrameDraws:
-    """One frame's draws (None for a group that does not vary)."""
+    """One frame's draws (None for a group that does not vary). texture_seed: the seed of
+    the frame's seeded texture patterns (its own stream, "randomize.textures"), with
+    ``materials.reseed_textures``."""
 
     materials: dict[str, MaterialDraw] | None = None
     sun: SunDraw | None = None
     earth: EarthDraw | None = None
     sensor: SensorDraw | None = None
     pose: PoseDraw | None = None
+    texture_seed: int | None = None
 
 
 def draw_materials(
@@ -200,6 +203,9 @@ def draw_frame(
         earth=None if ranges.earth is None else draw_earth(ranges.earth, seed, plan_index),
         sensor=None if ranges.sensor is None else draw_sensor(ranges.sensor, seed, plan_index),
         pose=None if ranges.pose is None else draw_pose(ranges.pose, seed, plan_index),
+        texture_seed=None
+        if ranges.materials is None or not ranges.materials.reseed_textures
+        else int(group_rng(seed, plan_index, "textures").integers(0, 2**62)),
     )
 
 

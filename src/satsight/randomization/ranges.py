@@ -48,13 +48,15 @@ class MaterialRanges:
     ior_shift: added to the index of refraction (result at least 1.05).
     swap_probability: the chance that the material is first replaced by another library
     material of its family (``satsight.scene.material_families``; none for a material
-    without a family or alone in it).
+    without a family or alone in it). reseed_textures: seeded texture patterns (MLI
+    crinkle) are drawn anew each frame.
     """
 
     roughness_scale: Interval = (0.7, 1.4)
     base_color_scale: Interval = (0.8, 1.2)
     ior_shift: Interval = (-0.1, 0.1)
     swap_probability: float = 0.25
+    reseed_textures: bool = True
 
     def __post_init__(self) -> None:
         check_interval("randomize.materials.roughness_scale", self.roughness_scale, 0.0, 10.0)
@@ -65,6 +67,8 @@ class MaterialRanges:
                 "randomize.materials.swap_probability must be within [0, 1], got "
                 f"{self.swap_probability:g}"
             )
+        if not isinstance(self.reseed_textures, bool):
+            raise SatsightError("randomize.materials.reseed_textures must be true or false")
 
 
 @dataclass(frozen=True)

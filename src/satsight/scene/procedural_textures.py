@@ -24,12 +24,14 @@ surface. Values not taken from a cited source are assumptions, like the library'
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 
 import numpy as np
 
 from satsight.scene.materials import FIRST_MATERIALS, Material
+from satsight.scene.mesh import TargetMesh
 from satsight.scene.textures import SurfaceTextures, TextureImage, encode, normal_map_pixels
 
 CELL_SIZE_M = (0.080, 0.040)  # (along the busbar, across it)
@@ -131,4 +133,36 @@ def mli_crinkle_textures(rng: np.random.Generator) -> SurfaceTextures:
     scale = math.tan(math.radians(MLI_RMS_TILT_DEG)) / slope
     normals = np.stack([-scale * du, -scale * dv, np.ones_like(du)], axis=-1)
     normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
-    return SurfaceTextures(normal=TextureImage(normal_map_pixels(normals), "linear"))
+    return SurfaceTextures(
+        normal=TextureImage(normal_map_pixels(normals), "linear"), procedural="mli_crinkle"
+    )
+
+
+#: Seeded patterns by their ``SurfaceTextures.procedural`` name: generator -> textures.
+RESEEDABLE = {"mli_crinkle": mli_crinkle_textures}
+
+
+def reseedable_parts(mesh: TargetMesh) -> list[int]:
+    """Indices of the parts whose textures a seeded pattern made (``RESEEDABLE``)."""
+    return [
+        k
+        for k, textures in enumerate(mesh.part_textures)
+        if textures is not None and textures.procedural in RESEEDABLE
+    ]
+
+
+def reseeded(mesh: TargetMesh, seed: int, parts: list[int] | None = None) -> TargetMesh:
+    """``mesh`` with the textures of the ``reseedable_parts`` parts (those among ``parts``
+    where given) made again, part k from ``np.random.default_rng([seed, k])`` (same
+    pattern, other wrinkles); the others unchanged."""
+    parts = [k for k in reseedable_parts(mesh) if parts is None or k in parts]
+    if not parts:
+        return mesh
+    textures = list(mesh.part_textures)
+    for k in parts:
+        old = textures[k]
+        remade = RESEEDABLE[old.procedural](np.random.default_rng([int(seed), k]))
+        textures[k] = dataclasses.replace(
+            remade, normal_scale=old.normal_scale, factors=old.factors
+        )
+    return dataclasses.replace(mesh, part_textures=tuple(textures))

@@ -94,13 +94,16 @@ class TextureImage:
 
 @dataclass(frozen=True, eq=False)
 class SurfaceTextures:
-    """The textures of one part (see the module docstring); any of them may be None."""
+    """The textures of one part (see the module docstring); any of them may be None.
+    procedural: the name of the seeded pattern that made them, which can make them again
+    from another generator (``satsight.scene.procedural_textures.RESEEDABLE``), or None."""
 
     base_color: TextureImage | None = None
     metallic_roughness: TextureImage | None = None
     normal: TextureImage | None = None
     normal_scale: float = 1.0
     factors: str = "multiply"
+    procedural: str | None = None
 
     def __post_init__(self) -> None:
         if self.factors not in FACTOR_MODES:
@@ -124,7 +127,9 @@ class SurfaceTextures:
         """The normal map alone (for a part given a built-in material), or None."""
         if self.normal is None:
             return None
-        return SurfaceTextures(normal=self.normal, normal_scale=self.normal_scale)
+        return SurfaceTextures(
+            normal=self.normal, normal_scale=self.normal_scale, procedural=self.procedural
+        )
 
 
 # --- encodings -------------------------------------------------------------------------------
