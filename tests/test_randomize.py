@@ -52,7 +52,8 @@ def scenario_dict(exposure: dict | None = None) -> dict:
         "randomize": {
             "materials": True,
             "sun": True,
-            "earth": {"surface_map_probability": 0.0},
+            # The Earth stays out of view (behind the target: test_the_earth_moves_behind...).
+            "earth": {"surface_map_probability": 0.0, "behind_probability": 0.0},
             "sensor": True,
             "pose": True,
         },
@@ -91,6 +92,8 @@ def test_every_group_varies_from_frame_to_frame_and_is_recorded(engine_records) 
         assert names, group
         for name in names:
             values = [_numbers(r, group)[name] for r in records]
+            if name == "behind_offset_rad":  # 0: the Earth stays put here (tested below)
+                continue
             if not name.endswith(("roughness", "ior")) or "scale" in name or "shift" in name:
                 assert len(set(values)) == FRAMES, (group, name, values)
 
@@ -247,3 +250,38 @@ def test_each_frame_renders_its_own_crinkle(engine_records) -> None:
     first, second = (m.part_textures[k].normal.pixels for m in meshes)
     assert not np.array_equal(first, second)
     assert not np.array_equal(first, engine.mesh.part_textures[k].normal.pixels)
+
+
+def test_the_earth_moves_behind_the_target_on_hand_placed_views() -> None:
+    """With behind_probability 1 the Earth's centre lies within 0.8 of its angular radius
+    of each frame's line of sight (a uniform Earth from GEO: 8.7 deg), as recorded, and
+    the frame shows the Earth all around the target (background id 1 on every pixel of a
+    ring 3 px outside its mask); the target's own pixels and pose do not change."""
+    from scipy import ndimage
+
+    from satsight.constants import EARTH_MEAN_RADIUS_M
+    from satsight.randomization.ranges import EARTH_BEHIND_CAP_FRACTION
+
+    base = scenario_dict({"mode": "fixed", "time_s": 0.0005})
+    base["randomize"] = {"earth": {"surface_map_probability": 0.0, "behind_probability": 1.0}}
+    engine = FrameEngine(parse_scenario(base, "test"))
+    plain = FrameEngine(parse_scenario({**base, "randomize": {}}, "test"))
+    radius = math.asin(EARTH_MEAN_RADIUS_M / (EARTH_MEAN_RADIUS_M + 36_000e3))
+    for i in range(2):
+        frame = engine.render(i)
+        record, _, _ = engine.finish(frame)
+        earth = record["randomized"]["earth"]
+        assert earth["behind"] is True
+        assert 0.0 <= earth["behind_offset_rad"] <= EARTH_BEHIND_CAP_FRACTION * radius
+        (body,) = [b for b in frame.light.bodies if b.name == "earth"]
+        to_earth_cam = frame.cam_from_body.R_a_from_b @ (body.center_body_m - engine.mesh.center_m)
+        off_axis = math.acos(to_earth_cam[2] / np.linalg.norm(to_earth_cam))
+        assert off_axis == pytest.approx(earth["behind_offset_rad"], abs=2e-4)
+        mask = frame.image.object_mask
+        ring = ndimage.binary_dilation(mask, iterations=4) & ~ndimage.binary_dilation(
+            mask, iterations=2
+        )
+        assert ring.sum() > 20 and np.all(frame.image.background_id[ring] == 1)
+        bare = plain.render(i)
+        assert np.array_equal(bare.image.object_mask, mask)
+        assert not np.any(bare.image.background_id == 1)  # the scenario's Earth: out of view

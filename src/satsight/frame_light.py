@@ -37,6 +37,7 @@ def frame_light(
     cam_from_body: RigidTransform | None = None,
     sun_direction_cam: np.ndarray | None = None,
     irradiance_scale: float = 1.0,
+    earth_direction_cam: np.ndarray | None = None,
 ) -> LightField:
     """The light at the target in frame ``index`` of the plan, in the body frame.
 
@@ -49,7 +50,8 @@ def frame_light(
 
     A randomised frame (``satsight.frame_variation``) gives the target's pose in the plan's
     camera frame (``cam_from_body``, turned by its attitude jitter), the Sun's direction in
-    that frame and a factor on the Sun's irradiance; defaults: the plan's.
+    that frame, a factor on the Sun's irradiance and the Earth's direction in that frame
+    (moved behind the target); defaults: the plan's.
     """
     cam_from_body = track.cam_from_body(index) if cam_from_body is None else cam_from_body
     R_body_from_cam = cam_from_body.R_a_from_b.T
@@ -63,10 +65,10 @@ def frame_light(
         return R_body_from_cam @ (direction_cam * distance_m)
 
     earth, moon = scenario.earth, scenario.moon
+    if earth_direction_cam is None:
+        earth_direction_cam = track.earth_from_target_cam[index]
     earth_center = (
-        None
-        if earth is None
-        else center_body(track.earth_from_target_cam[index], track.earth_distance_m[index])
+        None if earth is None else center_body(earth_direction_cam, track.earth_distance_m[index])
     )
     moon_center = (
         None

@@ -19,6 +19,7 @@ from satsight.config.scenario import Scenario
 from satsight.frames.rigid import RigidTransform
 from satsight.randomization.apply import (
     attitude_jitter_transform,
+    earth_behind_direction,
     jittered_direction,
     material_record,
     pose_record,
@@ -28,7 +29,13 @@ from satsight.randomization.apply import (
     varied_material,
     varied_sensor,
 )
-from satsight.randomization.draws import FrameDraws, MaterialDraw, draw_frame, draw_record
+from satsight.randomization.draws import (
+    EarthDraw,
+    FrameDraws,
+    MaterialDraw,
+    draw_frame,
+    draw_record,
+)
 from satsight.randomization.ranges import RandomizationRanges
 from satsight.render.renderer import Renderer
 from satsight.scene.band_reflectance import BandMaterials, builtins_from_library
@@ -95,6 +102,22 @@ class FrameVariation:
             }
         )
         return self.scenario.model_copy(update={"earth": varied})
+
+    def earth_direction_cam(self, draws: FrameDraws | None) -> np.ndarray | None:
+        """The Earth's direction from the target in the plan's camera frame where the
+        frame moves it behind the target (hand-placed views), else None (the plan's)."""
+        if draws is None or draws.earth is None or not self._earth_behind(draws.earth):
+            return None
+        return self._behind(draws.earth)[0]
+
+    def _earth_behind(self, draw: EarthDraw) -> bool:
+        """Whether the frame's Earth is moved behind the target (hand-placed views)."""
+        return draw.behind and self._hand_placed and self.scenario.earth is not None
+
+    def _behind(self, draw: EarthDraw) -> tuple[np.ndarray, float]:
+        """(unit Earth direction in the camera frame, its angle off the line of sight +z)."""
+        altitude_m = self.scenario.earth.altitude_km * 1e3
+        return earth_behind_direction(np.array([0.0, 0.0, 1.0]), altitude_m, draw)
 
     @staticmethod
     def irradiance_scale(draws: FrameDraws | None) -> float:
@@ -168,8 +191,14 @@ class FrameVariation:
         if draws.sun is not None:
             out["sun"] = draw_record(draws.sun)
         if draws.earth is not None:
+            d = draws.earth
+            behind = self._earth_behind(d)
             out["earth"] = {
-                **draw_record(draws.earth),
+                "albedo_scale": d.albedo_scale,
+                "surface": d.surface,
+                "cloud_pattern": d.cloud_pattern,
+                "behind": behind,
+                "behind_offset_rad": self._behind(d)[1] if behind else 0.0,
                 "applies": self.scenario.earth is not None,
             }
         if draws.sensor is not None:

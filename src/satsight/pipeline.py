@@ -275,6 +275,7 @@ class FrameEngine:
                 variation.poses(track.cam_from_body(i), draws).light_cam_from_body,
                 variation.sun_direction_cam(track.sun_from_target_cam[i], draws),
                 variation.irradiance_scale(draws),
+                variation.earth_direction_cam(draws),
             )
 
         def render(pose: RigidTransform, light: LightField, seed: int) -> RadianceImage:

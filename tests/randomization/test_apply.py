@@ -143,3 +143,22 @@ def test_families_cover_the_library_once_and_swaps_stay_in_them() -> None:
     assert swap_candidates("library:gold") == ("aluminium", "anodised_aluminium", "silver",
                                                "titanium")  # fmt: skip
     assert swap_candidates("cfrp") == () and swap_candidates("panel_substrate") == ()
+
+
+def test_the_earth_behind_is_off_the_line_of_sight_by_the_drawn_cap_angle() -> None:
+    """The Earth's centre is turned from the line of sight by the cap angle of the draw's
+    number (uniform over a cap of 0.8 x the Earth's angular radius from the altitude),
+    towards the draw's azimuth; u = 1 reaches the cap's edge."""
+    from satsight.constants import EARTH_MEAN_RADIUS_M
+    from satsight.randomization.apply import earth_behind_direction
+    from satsight.randomization.draws import EarthDraw
+
+    sight = np.array([0.0, 0.0, 1.0])
+    radius = math.asin(EARTH_MEAN_RADIUS_M / (EARTH_MEAN_RADIUS_M + 500e3))
+    for u in (0.0, 0.3, 1.0):
+        draw = EarthDraw(1.0, "uniform", 0, True, u, 1.0)
+        direction, theta = earth_behind_direction(sight, 500e3, draw)
+        cap = 0.8 * radius
+        assert theta == pytest.approx(math.acos(1.0 - u * (1.0 - math.cos(cap))), abs=1e-12)
+        assert math.acos(direction @ sight) == pytest.approx(theta, abs=1e-9)
+        assert np.linalg.norm(direction) == pytest.approx(1.0, abs=1e-12)

@@ -154,3 +154,14 @@ def test_texture_seeds_come_from_their_own_stream_with_reseeding_on() -> None:
     assert draw_frame(only_sun, 7, 12, [], True).texture_seed is None
     with pytest.raises(SatsightError, match="reseed_textures must be true or false"):
         MaterialRanges(reseed_textures=1)
+
+
+def test_the_earth_goes_behind_the_target_at_the_stated_rate() -> None:
+    """Over 4000 frames the Earth is moved behind the target at behind_probability within
+    4 standard errors; the earlier draws (albedo, surface, clouds) do not change with it."""
+    ranges = EarthRanges(behind_probability=0.3)
+    draws = [draw_earth(ranges, 5, i) for i in range(N_FRAMES)]
+    rate = np.mean([d.behind for d in draws])
+    assert abs(rate - 0.3) < Z * math.sqrt(0.3 * 0.7 / N_FRAMES)
+    never = draw_earth(EarthRanges(behind_probability=0.0), 5, 17)
+    assert not never.behind and never.albedo_scale == draws[17].albedo_scale

@@ -76,15 +76,22 @@ class SunRandomizeConfig(_Strict):
 
 class EarthRandomizeConfig(_Strict):
     """Factor on a uniform Earth's albedo, the chance the Earth is drawn with its albedo map
-    (else uniform), and how many cloud patterns the map's clouds are drawn from (each new
-    one costs ~20 s once). Applies where the scenario has ``earth``."""
+    (else uniform), how many cloud patterns the map's clouds are drawn from (each new one
+    costs ~20 s once), and on hand-placed views the chance that the Earth is moved behind
+    the target. Applies where the scenario has ``earth``."""
 
     albedo_scale: Pair = EarthRanges().albedo_scale
     surface_map_probability: float = EarthRanges().surface_map_probability
     cloud_patterns: int = EarthRanges().cloud_patterns
+    behind_probability: float = EarthRanges().behind_probability
 
     def build(self) -> EarthRanges:
-        return EarthRanges(self.albedo_scale, self.surface_map_probability, self.cloud_patterns)
+        return EarthRanges(
+            self.albedo_scale,
+            self.surface_map_probability,
+            self.cloud_patterns,
+            self.behind_probability,
+        )
 
 
 class SensorRandomizeConfig(_Strict):

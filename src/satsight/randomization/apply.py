@@ -9,9 +9,18 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from satsight.constants import EARTH_MEAN_RADIUS_M
 from satsight.frames.quaternion import matrix_from_quaternion, quaternion_from_axis_angle
 from satsight.frames.rigid import RigidTransform
-from satsight.randomization.draws import MaterialDraw, PoseDraw, SensorDraw, SunDraw
+from satsight.randomization.draws import (
+    EarthDraw,
+    MaterialDraw,
+    PoseDraw,
+    SensorDraw,
+    SunDraw,
+    cap_angle_rad,
+)
+from satsight.randomization.ranges import EARTH_BEHIND_CAP_FRACTION
 from satsight.scene.materials import Material
 from satsight.sensor.chain import SensorChain
 from satsight.vectors import unit
@@ -120,6 +129,21 @@ def jittered_direction(direction: np.ndarray, draw: SunDraw) -> np.ndarray:
     e1, e2 = perpendicular_basis(d)
     theta, phi = draw.direction_jitter_rad, draw.jitter_azimuth_rad
     return unit(math.cos(theta) * d + math.sin(theta) * (math.cos(phi) * e1 + math.sin(phi) * e2))
+
+
+def earth_behind_direction(
+    line_of_sight_body: np.ndarray, altitude_m: float, draw: EarthDraw
+) -> tuple[np.ndarray, float]:
+    """(unit direction of the Earth's centre from the target, body frame; its angle off
+    the line of sight, rad) for an Earth moved behind the target: the angle uniform over
+    the spherical cap of EARTH_BEHIND_CAP_FRACTION x the Earth's angular radius seen from
+    ``altitude_m`` about ``line_of_sight_body`` (unit, camera to target), towards the
+    draw's azimuth."""
+    sin_radius = EARTH_MEAN_RADIUS_M / (EARTH_MEAN_RADIUS_M + altitude_m)
+    cap = EARTH_BEHIND_CAP_FRACTION * math.asin(sin_radius)
+    theta = cap_angle_rad(draw.behind_offset_u, cap)
+    turned = SunDraw(1.0, theta, draw.behind_azimuth_rad)
+    return jittered_direction(line_of_sight_body, turned), theta
 
 
 def roll_transform(draw: PoseDraw) -> RigidTransform:

@@ -87,11 +87,16 @@ class SunDraw:
 @dataclass(frozen=True)
 class EarthDraw:
     """albedo_scale (a uniform Earth's); surface "map" or "uniform"; cloud_pattern: which
-    of the patterns (0 the scenario's cloud seed, k its seed + k)."""
+    of the patterns (0 the scenario's cloud seed, k its seed + k); behind: the Earth is
+    moved behind the target, its centre off the line of sight by the cap angle of
+    ``behind_offset_u`` (a uniform number) towards ``behind_azimuth_rad``."""
 
     albedo_scale: float
     surface: str
     cloud_pattern: int
+    behind: bool = False
+    behind_offset_u: float = 0.0
+    behind_azimuth_rad: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -155,11 +160,14 @@ def draw_sun(ranges: SunRanges, seed: int, plan_index: int, hand_placed: bool) -
 
 
 def draw_earth(ranges: EarthRanges, seed: int, plan_index: int) -> EarthDraw:
-    u = group_rng(seed, plan_index, "earth").random(3)
+    u = group_rng(seed, plan_index, "earth").random(6)
     return EarthDraw(
         albedo_scale=_uniform(u[0], ranges.albedo_scale),
         surface="map" if u[1] < ranges.surface_map_probability else "uniform",
         cloud_pattern=min(int(u[2] * ranges.cloud_patterns), ranges.cloud_patterns - 1),
+        behind=bool(u[3] < ranges.behind_probability),
+        behind_offset_u=float(u[4]),
+        behind_azimuth_rad=2.0 * math.pi * float(u[5]),
     )
 
 

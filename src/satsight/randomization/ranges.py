@@ -88,17 +88,26 @@ class SunRanges:
         check_cap_angle("randomize.sun.direction_jitter_deg", self.direction_jitter_rad)
 
 
+#: The Earth moved behind the target has its centre within this fraction of its angular
+#: radius (seen from the target) of the line of sight, so the target is seen against it.
+EARTH_BEHIND_CAP_FRACTION = 0.8
+
+
 @dataclass(frozen=True)
 class EarthRanges:
     """albedo_scale: factor on the albedo of a uniform Earth (clipped to 1); a mapped Earth
     keeps its map's values. surface_map_probability: the chance that the Earth is drawn
     with its albedo map, else uniform. cloud_patterns: the map's clouds are one of this many
     patterns (the scenario's cloud seed and the next ones); each new pattern's map is built
-    once, in ~20 s on two cores, then read from the disk cache."""
+    once, in ~20 s on two cores, then read from the disk cache. behind_probability: on
+    hand-placed views, the chance that the Earth is moved behind the target, its centre
+    within ``EARTH_BEHIND_CAP_FRACTION`` of its angular radius of the line of sight (else
+    it stays where the scenario puts it)."""
 
     albedo_scale: Interval = (0.8, 1.2)
     surface_map_probability: float = 0.8
     cloud_patterns: int = 1
+    behind_probability: float = 0.5
 
     def __post_init__(self) -> None:
         check_interval("randomize.earth.albedo_scale", self.albedo_scale, 0.0, 10.0)
@@ -106,6 +115,11 @@ class EarthRanges:
             raise SatsightError(
                 "randomize.earth.surface_map_probability must be within [0, 1], got "
                 f"{self.surface_map_probability:g}"
+            )
+        if not 0.0 <= self.behind_probability <= 1.0:
+            raise SatsightError(
+                "randomize.earth.behind_probability must be within [0, 1], got "
+                f"{self.behind_probability:g}"
             )
         if isinstance(self.cloud_patterns, bool) or not 1 <= self.cloud_patterns <= 64:
             raise SatsightError(
