@@ -56,3 +56,6 @@ MOON_ALBEDO = 0.12
 #: The paper's imaging band, nm: the default ``sun.band_nm`` of a scenario, and the band
 #: of every in-band quantity (irradiance, reflectance, QE average) unless one is given.
 DEFAULT_BAND_NM: tuple[float, float] = (450.0, 900.0)
+
+#: Luminance weights of linear Rec. 709 RGB (ITU-R BT.709-6, item 3.2).
+REC709_LUMINANCE_RGB = (0.2126, 0.7152, 0.0722)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from satsight.constants import REC709_LUMINANCE_RGB
 from satsight.lighting.scene_bodies import SceneBody
 
 ROWS, COLUMNS = 32, 64
@@ -31,8 +32,7 @@ ROWS, COLUMNS = 32, 64
 UNIFORM_SHARE = 1.0
 _SUB = (0.25, 0.75)  # 2 x 2 evaluation points per cell, in cell units
 _TWO_PI = 2.0 * math.pi
-# Rec. 709 luminance weights of linear RGB (ITU-R BT.709-6, item 3.2).
-_LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
+_LUMINANCE_RGB = np.array(REC709_LUMINANCE_RGB)
 
 
 @dataclass(frozen=True, eq=False)

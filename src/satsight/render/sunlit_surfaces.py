@@ -30,12 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from satsight.constants import REC709_LUMINANCE_RGB
 from satsight.scene.materials import Material
 
 #: The face choice's uniform numbers are multiples of 1 / _U_STEPS (PCG32 next_float32).
 _U_STEPS = float(2**23)
-# Rec. 709 luminance weights of linear RGB (ITU-R BT.709-6, item 3.2).
-_LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
+_LUMINANCE_RGB = np.array(REC709_LUMINANCE_RGB)
 
 
 def part_reflectance(material: Material) -> float:
