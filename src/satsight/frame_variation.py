@@ -147,13 +147,20 @@ class FrameVariation:
         the target's materials vary, the objects' keep theirs unless they share one)."""
         if draws is None or draws.materials is None:
             return base
-        materials = dict(base.mesh.materials)
+        return Renderer(self.varied_mesh(base.mesh, draws), base.settings, base.variant)
+
+    def varied_mesh(self, base: TargetMesh, draws: FrameDraws | None) -> TargetMesh:
+        """``base`` (the target, or the target merged with objects after it) with the
+        frame's materials and reseeded textures."""
+        if draws is None or draws.materials is None:
+            return base
+        materials = dict(base.materials)
         for name, draw in draws.materials.items():
             materials[name] = varied_material(self.material(name, draw), draw)
-        mesh = dataclasses.replace(base.mesh, materials=materials)
+        mesh = dataclasses.replace(base, materials=materials)
         if draws.texture_seed is not None:  # the target's parts come first in a scene
             mesh = reseeded(mesh, draws.texture_seed, reseedable_parts(self.mesh))
-        return Renderer(mesh, base.settings, base.variant)
+        return mesh
 
     def material(self, name: str, draw: MaterialDraw) -> Material:
         """The target's material ``name``, or the library material of its family that the

@@ -13,16 +13,15 @@ import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.camera import CameraConfig
-from satsight.config.objects import build_scene
 from satsight.config.scenario import Scenario, TargetConfig
 from satsight.constants import DEFAULT_BAND_NM
 from satsight.dataset.frame_files import OBJECT_FILE_KEYS, FrameArrays
 from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
-from satsight.dataset.object_labels import object_records, target_occlusion
 from satsight.errors import SatsightError
 from satsight.frame_light import frame_light, sun_irradiance_w_m2
 from satsight.frame_memory import check_frame_memory
+from satsight.frame_scene import frame_scene
 from satsight.frame_variation import FramePoses, FrameVariation
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.light_field import LightField
@@ -43,7 +42,7 @@ from satsight.scene.loading import load_mesh
 from satsight.scene.material_library import LIBRARY_PREFIX
 from satsight.scene.materials import FIRST_MATERIALS
 from satsight.scene.mesh import TargetMesh
-from satsight.scene.objects import objects_only
+from satsight.scene.objects import SceneMesh
 from satsight.scene.procedural import generate_satellite
 from satsight.sensor.chain import DnImage, SensorChain, exposure_regions
 from satsight.sensor.frame_stars import add_frame_stars
@@ -191,6 +190,7 @@ class RenderedFrame:
     still_irradiance_w_m2: np.ndarray | None = None  # the still's, when its image is the still
     draws: FrameDraws | None = None  # a randomised frame's draws
     poses: FramePoses | None = None  # and its poses
+    scene: SceneMesh | None = None  # the target and objects at mid-exposure (None: none)
 
 
 class FrameEngine:
@@ -206,14 +206,15 @@ class FrameEngine:
         check_frame_memory(camera.width_px, camera.height_px)  # before the mesh and renderer
         self.scenario = scenario
         self.mesh = build_target(scenario.target, scenario.sun.band_nm)
-        band = scenario.sun.band_nm  # other objects, merged after the target's parts:
-        self.scene = build_scene(scenario.objects, self.mesh, band, lambda c: build_target(c, band))
-        self._label_renderers: tuple[Renderer, Renderer] | None = None
         self.keypoints_body_m = target_keypoints_body_m(
             self.mesh, scenario.target.keypoints.build()
         )
         self.camera = camera
         self.track, self.plan_indices = planned_frames(scenario, self.mesh)
+        band = scenario.sun.band_nm  # other objects, merged after the target's parts:
+        self.objects = frame_scene(scenario, self.mesh, self.track, lambda c: build_target(c, band))
+        self.scene = None if self.objects is None else self.objects.fixed
+        self._moving = self.objects is not None and self.objects.moving
         self.sensor = build_sensor(scenario)
         # Camera modes: "primary", and "far" beyond camera.far.switch_range_km.
         self.modes: dict[str, tuple[PinholeCamera, SensorChain]] = {
@@ -260,10 +261,17 @@ class FrameEngine:
         mode = self.camera_mode(plan_index)
         camera, sensor = self.modes[mode]
         seed = frame_seed(self.scenario.seed, plan_index)
-        variation, draws, renderer = self.variation, None, self.renderer
+        variation, draws, renderer, scene = self.variation, None, self.renderer, self.scene
         if variation is not None:
             draws = variation.draw(plan_index)
-            renderer, sensor = variation.renderer(renderer, draws), variation.sensor(sensor, draws)
+            sensor = variation.sensor(sensor, draws)
+            if not self._moving:
+                renderer = variation.renderer(renderer, draws)
+        if self._moving:  # objects on their own flight: this frame's scene and renderer
+            target = self.mesh if variation is None else variation.varied_mesh(self.mesh, draws)
+            scene = self.objects.at(plan_index, 0.0, target)
+            settings, variant = renderer.settings, renderer.variant
+            renderer = Renderer(scene.mesh, settings, variant)
 
         def light_at(track: PoseTrack, i: int) -> LightField:
             if variation is None:
@@ -278,13 +286,19 @@ class FrameEngine:
                 variation.earth_direction_cam(draws),
             )
 
-        def render(pose: RigidTransform, light: LightField, seed: int) -> RadianceImage:
+        def render(
+            pose: RigidTransform, light: LightField, seed: int, offset_s: float = 0.0
+        ) -> RadianceImage:
             if variation is not None:  # the planned pose, rolled and jittered
                 pose = variation.poses(pose, draws).cam_from_body
-            image = renderer.render(camera, pose, light, seed, sensor.margin_px)
-            if self.scene is None:
+            used = renderer
+            if self._moving and offset_s != 0.0:  # the objects at the time sample's instant
+                moved = self.objects.at(plan_index, offset_s, target)
+                used = Renderer(moved.mesh, settings, variant)
+            image = used.render(camera, pose, light, seed, sensor.margin_px)
+            if scene is None:
                 return image
-            return replace(image, target_part_count=self.scene.target_part_count)
+            return replace(image, target_part_count=scene.target_part_count)
 
         planned = self.track.cam_from_body(plan_index)
         light = light_at(self.track, plan_index)
@@ -299,7 +313,7 @@ class FrameEngine:
         cam_from_body = planned if poses is None else poses.cam_from_body
         return RenderedFrame(
             frame_index, plan_index, cam_from_body, light, image, mode, motion, irradiance,
-            draws, poses,
+            draws, poses, scene,
         )  # fmt: skip
 
     def exposure_motion(
@@ -391,40 +405,10 @@ class FrameEngine:
             record["crop"] = crop_labels(labels, frame.image.object_mask, box)
         if self.scene is None:
             return record, FrameArrays(frame.image, dn_image), box
-        object_id, amodal = self.object_masks(frame, camera, record)
+        object_id, amodal = self.objects.masks(
+            frame.scene, frame.image.part_id, camera, frame.cam_from_body, frame.light, record
+        )
         return record, FrameArrays(frame.image, dn_image, object_id, amodal), box
-
-    def object_masks(
-        self, frame: RenderedFrame, camera: PinholeCamera, record: dict
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The object ids and the target's amodal mask of a frame whose scene holds
-        objects (``satsight.dataset.object_labels``), from labels-only renders of the target
-        alone and of the objects alone (direct light, one sample, no footprint); the
-        target's ``occlusion`` and the ``objects`` records are added to ``record``."""
-        scene = self.scene
-        if self._label_renderers is None:
-            settings = replace(
-                self.scenario.render.settings(),
-                bounces=0, samples_per_pixel=1, supersampling=1, integrate_footprint=False,
-                environment="off",
-            )  # fmt: skip
-            variant = self.scenario.render.variant
-            self._label_renderers = (
-                Renderer(self.mesh, settings, variant),
-                Renderer(objects_only(scene), settings, variant),
-            )
-        alone, objects = (
-            r.render(camera, frame.cam_from_body, frame.light).part_id
-            for r in self._label_renderers
-        )
-        object_id = scene.object_id(frame.image.part_id)
-        amodal = alone > 0
-        record["occlusion"] = target_occlusion(object_id, amodal)
-        poses = [frame.cam_from_body @ pose for pose in scene.target_from_object]
-        record["objects"] = object_records(
-            scene.object_names, poses, object_id, scene.object_id(objects)
-        )
-        return object_id, amodal
 
     def sun_irradiance_at_camera(self, plan_index: int) -> tuple[float, float]:
         """The Sun's in-band irradiance (W m^-2) at plan frame ``plan_index`` before the

@@ -1,11 +1,17 @@
 """The scenario's ``objects``: other things beside the target (a second spacecraft, a mesh,
 a cloud of debris), placed fixed in the target's body frame (``satsight.scene.objects``).
 
-Placement: ``offset_m`` (the object's origin in the target's body frame, metres) and
-``q_target_from_object`` (scalar-first), fixed in the target's frame, so an object moves
-with the target on every frame plan. This is the first placement mode; an object with its
-own orbit and attitude law is not modelled yet. A debris cloud is placed by its shell
-about the target's box centre (its offset and rotation then move the whole cloud).
+Placement, one of two:
+
+- fixed in the target's body frame: ``offset_m`` (the object's origin, metres) and
+  ``q_target_from_object`` (scalar-first), so the object moves with the target on every
+  frame plan. A debris cloud is placed by its shell about the target's box centre (its
+  offset and rotation then move the whole cloud).
+- ``flight:``, its own flight (frames planned from orbits only): its own ``orbit``
+  (osculating elements at the epoch) or a start relative to the target in RTN
+  (``position_rtn_m``, ``velocity_rtn_m_s``), and an ``attitude`` law of its own (the
+  target's form); ``satsight.poses.object_flight``. A flying debris cloud's shell is about
+  its own origin.
 """
 
 from __future__ import annotations
@@ -16,11 +22,13 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from satsight.config.orbital import AttitudeConfig, OrbitConfig
 from satsight.config.target import MeshTargetConfig, ProceduralTargetConfig, TargetConfig
 from satsight.frames.rigid import RigidTransform
+from satsight.poses.object_flight import ObjectFlight
 from satsight.scene.band_reflectance import library_materials
 from satsight.scene.mesh import TargetMesh
-from satsight.scene.objects import DEBRIS_MATERIALS, SceneMesh, debris_cloud, merge_scene
+from satsight.scene.objects import DEBRIS_MATERIALS, debris_cloud
 
 
 class _Strict(BaseModel):
@@ -46,9 +54,42 @@ class DebrisConfig(_Strict):
         return self
 
 
+class FlightConfig(_Strict):
+    """An object's own flight: exactly one of ``orbit`` (its osculating elements at the
+    epoch) or ``position_rtn_m`` (with ``velocity_rtn_m_s``: its state relative to the
+    target's body origin in the target's RTN frame at the epoch), and its ``attitude``
+    (default LVLH-fixed about its own orbit)."""
+
+    orbit: OrbitConfig | None = None
+    position_rtn_m: tuple[float, float, float] | None = None
+    velocity_rtn_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    attitude: AttitudeConfig = AttitudeConfig()
+
+    @model_validator(mode="after")
+    def _one_start(self) -> FlightConfig:
+        if (self.orbit is None) == (self.position_rtn_m is None):
+            raise ValueError("a flight starts from exactly one of 'orbit' or 'position_rtn_m'")
+        if self.orbit is not None and any(self.velocity_rtn_m_s):
+            raise ValueError("velocity_rtn_m_s goes with position_rtn_m, not with 'orbit'")
+        values = [*(self.position_rtn_m or ()), *self.velocity_rtn_m_s]
+        if not all(np.isfinite(values)):
+            raise ValueError("position_rtn_m and velocity_rtn_m_s must be finite")
+        return self
+
+    def build(self) -> ObjectFlight:
+        if self.orbit is not None:
+            return ObjectFlight(self.orbit.build(), None, None, self.attitude.build())
+        return ObjectFlight(
+            None,
+            np.asarray(self.position_rtn_m, dtype=np.float64),
+            np.asarray(self.velocity_rtn_m_s, dtype=np.float64),
+            self.attitude.build(),
+        )
+
+
 class ObjectConfig(_Strict):
     """One object: a ``name``, exactly one of ``procedural``, ``mesh`` or ``debris``, and its
-    placement in the target's body frame (module docstring)."""
+    placement: fixed in the target's body frame or its own ``flight`` (module docstring)."""
 
     name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")
     procedural: ProceduralTargetConfig | None = None
@@ -56,6 +97,7 @@ class ObjectConfig(_Strict):
     debris: DebrisConfig | None = None
     offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     q_target_from_object: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    flight: FlightConfig | None = None
 
     @model_validator(mode="after")
     def _exactly_one(self) -> ObjectConfig:
@@ -63,6 +105,12 @@ class ObjectConfig(_Strict):
         if len(given) != 1:
             raise ValueError(
                 f"object '{self.name}': give exactly one of 'procedural', 'mesh' or 'debris'"
+            )
+        fixed = any(self.offset_m) or tuple(self.q_target_from_object) != (1.0, 0.0, 0.0, 0.0)
+        if self.flight is not None and fixed:
+            raise ValueError(
+                f"object '{self.name}': a 'flight' places the object; leave out offset_m and "
+                "q_target_from_object"
             )
         return self
 
@@ -75,7 +123,8 @@ class ObjectConfig(_Strict):
         return value
 
     def target_from_object(self) -> RigidTransform:
-        """The object's pose in the target's body frame."""
+        """The object's pose in the target's body frame (fixed placement; the identity for
+        a flying object, whose frame is then its own)."""
         return RigidTransform.from_quaternion(
             np.array(self.q_target_from_object), np.array(self.offset_m)
         )
@@ -105,20 +154,20 @@ def unique_object_names(objects: list[ObjectConfig]) -> list[ObjectConfig]:
     return objects
 
 
-def build_scene(
+def placed_objects(
     objects: list[ObjectConfig],
     target: TargetMesh,
     band_nm: tuple[float, float],
     build_shape: Callable[[TargetConfig], TargetMesh],
-) -> SceneMesh | None:
-    """The target and ``objects`` merged for the renderer (None without objects).
+) -> list[tuple[str, TargetMesh, RigidTransform]]:
+    """Each object as (name, mesh in its own frame, target_from_object) for
+    ``satsight.scene.objects.merge_scene``; a flying object's pose is the identity here
+    (``satsight.frame_scene`` places it at each frame).
 
     build_shape: makes a procedural or mesh object as the target is made
     (``satsight.pipeline.build_target``); debris takes the library materials of
     ``band_nm``.
     """
-    if not objects:
-        return None
     placed = []
     for item in objects:
         shape = item.shape()
@@ -127,8 +176,7 @@ def build_scene(
         else:
             d = item.debris
             pool = library_materials(DEBRIS_MATERIALS, band_nm)
-            mesh = debris_cloud(
-                item.name, d.count, d.size_m, d.shell_m, target.center_m, pool, d.seed
-            ).mesh
+            center = target.center_m if item.flight is None else np.zeros(3)
+            mesh = debris_cloud(item.name, d.count, d.size_m, d.shell_m, center, pool, d.seed).mesh
         placed.append((item.name, mesh, item.target_from_object()))
-    return merge_scene(target, placed)
+    return placed

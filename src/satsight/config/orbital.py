@@ -25,6 +25,7 @@ from satsight.ephemeris.tle import parse_tle, read_omm_file, read_tle_file, sele
 from satsight.ephemeris.visibility import DEFAULT_ATMOSPHERE_MARGIN_M, VisibilityLimits
 from satsight.poses.attitude import ROLL_POLICIES
 from satsight.poses.distance_intervals import APPROACH_INTERVALS_KM, HOVER_DISTANCE_KM
+from satsight.poses.plan_request import AttitudeLaw
 
 # Lowest perigee accepted: below ~100 km an orbit decays within hours.
 MIN_PERIGEE_ALTITUDE_KM = 100.0
@@ -117,6 +118,9 @@ class AttitudeConfig(_Strict):
     @property
     def rate_body_rad_s(self) -> np.ndarray:
         return np.radians(np.asarray(self.rate_body_deg_s, dtype=np.float64))
+
+    def build(self) -> AttitudeLaw:
+        return AttitudeLaw(self.law, self.q_ref_from_body_unit, self.rate_body_rad_s)
 
 
 class _ObserverBase(_Strict):

@@ -38,7 +38,6 @@ from satsight.errors import SatsightError
 from satsight.poses.distance_intervals import DistanceInterval
 from satsight.poses.plan_request import (
     Approach,
-    AttitudeLaw,
     FlyAround,
     FlyBy,
     Hover,
@@ -141,11 +140,7 @@ def orbital_plan_request(
     return OrbitalPlanRequest(
         epoch_utc=epoch_utc,
         target=target_trajectory(trajectory),
-        attitude=AttitudeLaw(
-            law=attitude.law,
-            q_ref_from_body=attitude.q_ref_from_body_unit,
-            rate_body_rad_s=attitude.rate_body_rad_s,
-        ),
+        attitude=attitude.build(),
         sampler=_sampler(sampler),
         observer=None
         if observer is None

@@ -268,6 +268,17 @@ class Scenario(_Strict):
     def _object_names(cls, value: list[ObjectConfig]) -> list[ObjectConfig]:
         return unique_object_names(value)
 
+    @model_validator(mode="after")
+    def _flights_need_orbits(self) -> Scenario:
+        flying = [o.name for o in self.objects if o.flight is not None]
+        if flying and self.sampler is None:
+            raise ValueError(
+                f"objects {flying} fly on their own, which needs frames planned from orbits "
+                "(epoch_utc, the target's orbit and a sampler); with frames placed by hand, "
+                "place objects by offset_m and q_target_from_object"
+            )
+        return self
+
     @model_serializer(mode="wrap")
     def _without_empty_objects(self, handler: SerializerFunctionWrapHandler) -> dict:
         # A scenario without objects dumps (and hashes) as it did before they existed.

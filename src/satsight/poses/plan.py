@@ -65,6 +65,7 @@ from satsight.poses.distance_intervals import default_intervals, interval_names_
 from satsight.poses.observer_start import mean_motion_rad_s, observer_initial_state
 from satsight.poses.plan_request import (
     Approach,
+    AttitudeLaw,
     FlyAround,
     Hover,
     OrbitalPlanRequest,
@@ -148,7 +149,14 @@ def _sspt_times(request: OrbitalPlanRequest) -> np.ndarray:
 def _target_attitude(
     request: OrbitalPlanRequest, r: np.ndarray, v: np.ndarray, times_s: np.ndarray
 ) -> np.ndarray:
-    attitude = request.attitude
+    return attitude_quaternions(request.attitude, r, v, times_s)
+
+
+def attitude_quaternions(
+    attitude: AttitudeLaw, r: np.ndarray, v: np.ndarray, times_s: np.ndarray
+) -> np.ndarray:
+    """(N, 4) q_gcrs_from_body of a body on the states ``r``, ``v`` (N, 3) at ``times_s``
+    (N,) s after the epoch, turning by ``attitude``."""
     q_ref = attitude.q_ref_from_body
     if attitude.law == "lvlh_fixed":
         return lvlh_fixed_attitude(r, v, q_ref)
@@ -165,7 +173,38 @@ def _trajectory_states(
     return states.state_gcrs(epoch_times(request.epoch_utc, times_s))
 
 
-def _target_start(request: OrbitalPlanRequest) -> tuple[np.ndarray, np.ndarray, OrbitalElements]:
+def fly(
+    request: OrbitalPlanRequest, r_start: np.ndarray, v_start: np.ndarray, times_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """GCRS positions and velocities (N, 3) at ``times_s`` (N,) (ascending, >= 0) of a
+    craft starting at ``r_start``, ``v_start`` at the epoch, propagated as the request's
+    spacecraft are."""
+    prop = request.propagation
+    # J2 about the true pole needs the epoch; without one the GCRS z axis stands in.
+    true_pole = prop.j2_axis == "true_pole" and request.epoch_utc is not None
+    return propagate(
+        r_start,
+        v_start,
+        times_s,
+        j2=prop.j2,
+        method=prop.method,
+        step_s=prop.step_s,
+        epoch=request.epoch_utc if true_pole else None,
+        j2_axis="true_pole" if true_pole else "gcrs_z",
+        max_zonal_degree=prop.max_zonal_degree,
+    )
+
+
+def target_states(
+    request: OrbitalPlanRequest, times_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The target's GCRS positions and velocities (N, 3) at ``times_s`` (N,), ascending."""
+    if request.target.elements is not None:
+        return fly(request, *target_start(request)[:2], times_s)
+    return _trajectory_states(request.target.states, request, times_s)
+
+
+def target_start(request: OrbitalPlanRequest) -> tuple[np.ndarray, np.ndarray, OrbitalElements]:
     """The target's GCRS state at the epoch and its osculating elements there."""
     if request.target.elements is not None:
         elements = request.target.elements
@@ -195,7 +234,7 @@ class _Flight:
 
 def _rssf_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Flight:
     sampler = request.sampler
-    r0, v0, _ = _target_start(request)
+    r0, v0, _ = target_start(request)
     count = sampler.frame_count
     times = np.zeros(count)
     r_t, v_t = np.tile(r0, (count, 1)), np.tile(v0, (count, 1))
@@ -221,33 +260,12 @@ def _rssf_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Fligh
 def _sspt_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Flight:
     # From elements (orbit) the target is propagated; from a TLE/OMM (SGP4) or an OEM it
     # follows that trajectory, and the relative modes start from its state at the epoch.
-    r0, v0, elements = _target_start(request)
+    r0, v0, elements = target_start(request)
     from_elements = request.target.elements is not None
-    prop = request.propagation
     sampler, observer = request.sampler, request.observer
     motion = observer.motion
-
-    # J2 about the true pole needs the epoch; without one the GCRS z axis stands in.
-    true_pole = prop.j2_axis == "true_pole" and request.epoch_utc is not None
-
-    def fly(r_start: np.ndarray, v_start: np.ndarray, times: np.ndarray):
-        return propagate(
-            r_start,
-            v_start,
-            times,
-            j2=prop.j2,
-            method=prop.method,
-            step_s=prop.step_s,
-            epoch=request.epoch_utc if true_pole else None,
-            j2_axis="true_pole" if true_pole else "gcrs_z",
-            max_zonal_degree=prop.max_zonal_degree,
-        )
-
     times = _sspt_times(request)
-    if from_elements:
-        r_t, v_t = fly(r0, v0, times)
-    else:
-        r_t, v_t = _trajectory_states(request.target.states, request, times)
+    r_t, v_t = target_states(request, times)
     q_gcrs_from_body = _target_attitude(request, r_t, v_t, times)
     center = r_t + matrix_from_quaternion(q_gcrs_from_body) @ center_body
     if isinstance(motion, Approach):
@@ -266,13 +284,13 @@ def _sspt_flight(request: OrbitalPlanRequest, center_body: np.ndarray) -> _Fligh
     elif isinstance(motion, OwnTrajectory):
         r_obs, v_obs = _trajectory_states(motion.states, request, times)
     else:
-        r_obs, v_obs = fly(*observer_initial_state(request, r0, v0, elements), times)
+        r_obs, v_obs = fly(request, *observer_initial_state(request, r0, v0, elements), times)
         if not from_elements and not isinstance(motion, OwnElements):
             # The natural relative motion comes from both spacecraft flown with the same
             # dynamics from the target's state at the epoch; it is carried, in RTN, onto the
             # target's real (SGP4 / OEM) trajectory, whose own dynamics differ from ours and
             # would otherwise pull the pair apart by kilometres per orbit.
-            rho, rho_dot = relative_rtn(*fly(r0, v0, times), r_obs, v_obs)
+            rho, rho_dot = relative_rtn(*fly(request, r0, v0, times), r_obs, v_obs)
             r_obs, v_obs = inertial_from_relative_rtn(r_t, v_t, rho, rho_dot)
     roll_rad = np.full(len(times), observer.roll_rad)
     return _Flight(

@@ -131,7 +131,7 @@ def subframe_seed(frame_seed: int, sample: int) -> int:
 
 
 def render_over_exposure(
-    render: Callable[[RigidTransform, LightField, int], RadianceImage],
+    render: Callable[[RigidTransform, LightField, int, float], RadianceImage],
     light_at: Callable[[PoseTrack, int], LightField],
     track: PoseTrack,
     index: int,
@@ -140,8 +140,9 @@ def render_over_exposure(
     motion: ExposureMotion,
 ) -> RadianceImage:
     """Frame ``index`` averaged over its exposure: the mean radiance (and margin ring) of
-    the time samples of ``motion``, each rendered by ``render(cam_from_body, light, seed)``
-    with the light ``light_at(track, 0)`` of its one-frame track. The geometric label
+    the time samples of ``motion``, each rendered by ``render(cam_from_body, light, seed,
+    offset_s)`` with the light ``light_at(track, 0)`` of its one-frame track (offset_s: the
+    sample's instant from the frame's time, for what else moves in the scene). The geometric label
     images (depth, part ids, normals, background) are the still's, at mid-exposure.
     ``still``: the frame rendered at its own time with ``frame_seed``, reused as the middle
     sample when the count is odd."""
@@ -157,7 +158,8 @@ def render_over_exposure(
             image = still
         else:
             moved = track_at_offset(track, index, float(tau))
-            image = render(moved.cam_from_body(0), light_at(moved, 0), subframe_seed(frame_seed, k))
+            seed = subframe_seed(frame_seed, k)
+            image = render(moved.cam_from_body(0), light_at(moved, 0), seed, float(tau))
         total += image.radiance_w_m2_sr
         if margin is not None:
             margin += image.margin_radiance_w_m2_sr
