@@ -6,7 +6,7 @@ The camera hovers 50 m ahead of the target; a 2 m plate starts 25 m ahead of the
 - its pose label agrees, to 1 mm, with an independent construction from the inertial
   states: the plate flown from its RTN start, seen from the camera's planned position and
   attitude in GCRS (the renderer's route goes through the target's body frame instead);
-- its visible pixels are centred where that position projects (1 px);
+- its visible pixels are centred where that position projects (0.5 px);
 - it moves across the image between frames and, where it passes before the target, hides
   part of it.
 
@@ -118,9 +118,10 @@ def test_a_flying_plate_is_drawn_where_it_is_and_moves_across_the_frames(driftin
         v, u = np.nonzero(arrays.object_id == 2)
         assert u.size > 100
         projected = engine.camera.project(np.array([plate["t_cam_from_object_m"]]))[0]
-        # Pixel centres are at integer + 0.5 in the labels' convention.
-        centre = np.array([u.mean() + 0.5, v.mean() + 0.5])
-        assert np.linalg.norm(centre - projected) < 1.0
+        # Pixel centres are at whole pixel coordinates (principal point (W - 1) / 2). The
+        # centroid of the pixel centres inside a square is its centre within 0.5 px.
+        centre = np.array([u.mean(), v.mean()])
+        assert np.linalg.norm(centre - projected) < 0.5
         centres.append(centre)
         hidden.append(record["occlusion"]["amodal_pixel_count"]
                       - record["occlusion"]["visible_pixel_count"])  # fmt: skip
@@ -171,3 +172,27 @@ def test_randomised_materials_keep_the_flying_plate(drifting, tmp_path) -> None:
     assert "materials" in record["randomized"]
     assert np.array_equal(arrays.object_id, plain_arrays.object_id)
     assert record["objects"] == plain_record["objects"]
+
+
+def test_an_object_far_out_of_view_changes_no_pixel(drifting, tmp_path) -> None:
+    """A second satellite on its own orbit, thousands of kilometres away, is left out of
+    every frame's geometry (``FrameView``): the radiance, depth and part ids equal those
+    of the scenario without it, byte for byte, and its record shows no pixels."""
+    scenario, _, _ = drifting
+    data = scenario.model_dump(mode="json", exclude_none=True)
+    far_orbit = {**BASE["orbit"], "raan_deg": 80.0}
+    data["objects"] = [
+        {"name": "far", "procedural": {"satellite_class": "tango"}, "flight": {"orbit": far_orbit}}
+    ]
+    with_far = FrameEngine(parse_scenario(data, "test"))
+    alone = FrameEngine(parse_scenario({**data, "objects": []}, "test"))
+    for i in range(with_far.frame_count):
+        frame = with_far.render(i)
+        record, _, _ = with_far.finish(frame)
+        plain = alone.render(i).image
+        distance = np.linalg.norm(record["objects"][0]["t_cam_from_object_m"])
+        assert distance > 1e6
+        assert record["objects"][0]["pixel_count"] == 0
+        assert np.array_equal(frame.image.radiance_w_m2_sr, plain.radiance_w_m2_sr)
+        assert np.array_equal(frame.image.depth_m, plain.depth_m)
+        assert np.array_equal(frame.image.part_id, plain.part_id)

@@ -11,7 +11,7 @@ renderer of its own (~35 ms for 6 000 triangles; the compiled kernels are shared
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,6 +29,74 @@ from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.objects import SceneMesh, merge_scene, objects_only
+
+#: An object whose light on the target is below this fraction of the Sun's is left out of
+#: a frame it is not seen in (module docstring of ``FrameView``).
+NEGLIGIBLE_REFLECTED_FRACTION = 1e-4
+#: The Sun's angular radius (rad; 959.6" at 1 au): how fast a shadow's penumbra widens.
+SUN_ANGULAR_RADIUS_RAD = 4.652e-3
+
+
+@dataclass(frozen=True)
+class FrameView:
+    """A frame's camera and Sun, to tell which flying objects can show in it.
+
+    An object (bounding sphere of radius r at distance d from the target's bounding-sphere
+    centre, target radius R) is kept when any of these holds, and left out of the frame's
+    geometry otherwise (its parts keep their ids; its record shows 0 pixels):
+
+    - its sphere meets the camera's field of view (the image widened by ``margin_px``);
+    - it is near: a Lambertian surface of albedo <= 1 filling the sphere's disc sends the
+      target at most E (r / (d - r - R))^2, below ``NEGLIGIBLE_REFLECTED_FRACTION`` of the
+      Sun's irradiance E beyond d = r / sqrt(f) + r + R (100 r + r + R); it also hides at
+      most that share of the Earth's light;
+    - it is sunward of the target within R + r + d_sun alpha_sun of the Sun line (it may
+      shadow the target, penumbra included).
+
+    A specular part of a far object can still glint sunlight onto the target; that light
+    is left out with it.
+    """
+
+    camera: PinholeCamera
+    cam_from_body: RigidTransform
+    sun_direction_body: np.ndarray
+    margin_px: int = 0
+
+    def shows(self, target: TargetMesh, placed: tuple[str, TargetMesh, RigidTransform]) -> bool:
+        _, mesh, pose = placed
+        radius = mesh.bounding_radius_m
+        center = pose.apply(mesh.center_m[None, :])[0]
+        offset = center - target.center_m
+        distance = float(np.linalg.norm(offset))
+        near = radius / np.sqrt(NEGLIGIBLE_REFLECTED_FRACTION) + radius + target.bounding_radius_m
+        if distance < near:
+            return True
+        sun = np.asarray(self.sun_direction_body, dtype=np.float64)
+        along = float(offset @ sun)
+        across = float(np.linalg.norm(offset - along * sun))
+        reach = target.bounding_radius_m + radius + max(along, 0.0) * SUN_ANGULAR_RADIUS_RAD
+        if along > -radius and across < reach:
+            return True
+        return self._in_view(self.cam_from_body.apply(center[None, :])[0], radius)
+
+    def _in_view(self, center_cam: np.ndarray, radius: float) -> bool:
+        """Whether a sphere meets the pyramid of the image widened by ``margin_px``."""
+        if center_cam[2] < -radius:
+            return False
+        camera, m = self.camera, self.margin_px
+        u = np.array([-0.5 - m, camera.width_px - 0.5 + m])
+        v = np.array([-0.5 - m, camera.height_px - 0.5 + m])
+        x = (u - camera.cx_px) / camera.focal_length_px
+        y = (v - camera.cy_px) / camera.focal_length_px
+        corners = [np.array([x[i], y[j], 1.0]) for i, j in ((0, 0), (1, 0), (1, 1), (0, 1))]
+        for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+            normal = np.cross(a, b)
+            normal /= np.linalg.norm(normal)
+            if normal[2] < 0:
+                normal = -normal  # inward: the boresight is inside
+            if center_cam @ normal < -radius:
+                return False
+        return True
 
 
 class FrameScene:
@@ -68,11 +136,16 @@ class FrameScene:
         return bool(self._flying)
 
     def at(
-        self, plan_index: int, offset_s: float = 0.0, target: TargetMesh | None = None
+        self,
+        plan_index: int,
+        offset_s: float = 0.0,
+        target: TargetMesh | None = None,
+        view: FrameView | None = None,
     ) -> SceneMesh:
         """The scene of plan frame ``plan_index``, ``offset_s`` from its time; target: the
-        target's mesh of this frame (its randomised materials), default the scenario's.
-        Without flying objects the one fixed scene."""
+        target's mesh of this frame (its randomised materials), default the scenario's;
+        view: the frame's camera and Sun, which leave out the flying objects that cannot
+        show in it (``FrameView``). Without flying objects the one fixed scene."""
         if not self._flying:
             return self.fixed
         omega = None
@@ -84,7 +157,10 @@ class FrameScene:
         for k, poses in zip(self._flying, self._poses, strict=True):
             name, mesh, _ = placed[k]
             placed[k] = (name, mesh, poses.target_from_object(plan_index, offset_s, omega))
-        return merge_scene(self._target if target is None else target, placed)
+        absent = frozenset()
+        if view is not None:
+            absent = frozenset(k for k in self._flying if not view.shows(self._target, placed[k]))
+        return merge_scene(self._target if target is None else target, placed, absent)
 
     def masks(
         self,
@@ -107,12 +183,15 @@ class FrameScene:
                 Renderer(objects_only(self.fixed), settings, variant),
             )
         alone_renderer, objects_renderer = self._label_renderers
-        if self.moving:  # the objects where they are in this frame
+        alone = alone_renderer.render(camera, cam_from_body, light).part_id
+        if not self.moving:
+            objects = objects_renderer.render(camera, cam_from_body, light).part_id
+        elif np.any(scene.mesh.face_part_index >= scene.target_part_count):
+            # The objects where they are in this frame.
             objects_renderer = Renderer(objects_only(scene), settings, variant)
-        alone, objects = (
-            r.render(camera, cam_from_body, light).part_id
-            for r in (alone_renderer, objects_renderer)
-        )
+            objects = objects_renderer.render(camera, cam_from_body, light).part_id
+        else:  # every object left out of this frame
+            objects = np.zeros_like(alone)
         object_id = scene.object_id(part_id)
         amodal = alone > 0
         record["occlusion"] = target_occlusion(object_id, amodal)

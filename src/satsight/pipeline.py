@@ -21,7 +21,7 @@ from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labe
 from satsight.errors import SatsightError
 from satsight.frame_light import frame_light, sun_irradiance_w_m2
 from satsight.frame_memory import check_frame_memory
-from satsight.frame_scene import frame_scene
+from satsight.frame_scene import FrameView, frame_scene
 from satsight.frame_variation import FramePoses, FrameVariation
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.light_field import LightField
@@ -267,11 +267,10 @@ class FrameEngine:
             sensor = variation.sensor(sensor, draws)
             if not self._moving:
                 renderer = variation.renderer(renderer, draws)
-        if self._moving:  # objects on their own flight: this frame's scene and renderer
-            target = self.mesh if variation is None else variation.varied_mesh(self.mesh, draws)
-            scene = self.objects.at(plan_index, 0.0, target)
-            settings, variant = renderer.settings, renderer.variant
-            renderer = Renderer(scene.mesh, settings, variant)
+        target = self.mesh
+        if self._moving and variation is not None:  # objects on their own flight
+            target = variation.varied_mesh(self.mesh, draws)
+        scenes: dict[float, SceneMesh] = {}
 
         def light_at(track: PoseTrack, i: int) -> LightField:
             if variation is None:
@@ -292,9 +291,10 @@ class FrameEngine:
             if variation is not None:  # the planned pose, rolled and jittered
                 pose = variation.poses(pose, draws).cam_from_body
             used = renderer
-            if self._moving and offset_s != 0.0:  # the objects at the time sample's instant
-                moved = self.objects.at(plan_index, offset_s, target)
-                used = Renderer(moved.mesh, settings, variant)
+            if self._moving:  # the objects at this instant, those that can show
+                view = FrameView(camera, pose, light.sun_direction_body, sensor.margin_px)
+                moved = scenes[offset_s] = self.objects.at(plan_index, offset_s, target, view)
+                used = Renderer(moved.mesh, renderer.settings, renderer.variant)
             image = used.render(camera, pose, light, seed, sensor.margin_px)
             if scene is None:
                 return image
@@ -313,7 +313,7 @@ class FrameEngine:
         cam_from_body = planned if poses is None else poses.cam_from_body
         return RenderedFrame(
             frame_index, plan_index, cam_from_body, light, image, mode, motion, irradiance,
-            draws, poses, scene,
+            draws, poses, scenes.get(0.0, scene),
         )  # fmt: skip
 
     def exposure_motion(

@@ -190,10 +190,13 @@ def _corner_normals(mesh: TargetMesh, R: np.ndarray) -> np.ndarray:
 def merge_scene(
     target: TargetMesh,
     objects: Sequence[tuple[str, TargetMesh, RigidTransform]],
+    absent: frozenset[int] = frozenset(),
 ) -> SceneMesh:
     """The target and ``objects`` (name, mesh in its own frame, target_from_object) as one
     mesh in the target's body frame: vertices moved, normals turned, part indices offset,
-    part names prefixed ``name/``; materials pooled (the target's definitions win a name)."""
+    part names prefixed ``name/``; materials pooled (the target's definitions win a name).
+    absent: indices into ``objects`` left out of the geometry (their parts keep their ids
+    in the part table, so every other part's id and object id stay)."""
     if len(objects) > 253:
         raise SatsightError(f"at most 253 objects fit an 8-bit object-id mask, got {len(objects)}")
     names = [name for name, _, _ in objects]
@@ -208,15 +211,17 @@ def merge_scene(
     materials: dict[str, Material] = {}
     offset = part_offset = 0
     for k, (mesh, pose) in enumerate(meshes):
-        verts.append(pose.apply(mesh.vertices_m))
-        faces.append(mesh.faces + offset)
-        index.append(mesh.face_part_index + part_offset)
-        if smooth:
-            normals.append(_corner_normals(mesh, pose.R_a_from_b))
-        if with_uv:
-            uv = mesh.corner_uv
-            uvs.append(np.zeros((len(mesh.faces), 3, 2)) if uv is None else uv)
         parts = len(mesh.part_names)
+        if k - 1 not in absent:
+            verts.append(pose.apply(mesh.vertices_m))
+            faces.append(mesh.faces + offset)
+            index.append(mesh.face_part_index + part_offset)
+            if smooth:
+                normals.append(_corner_normals(mesh, pose.R_a_from_b))
+            if with_uv:
+                uv = mesh.corner_uv
+                uvs.append(np.zeros((len(mesh.faces), 3, 2)) if uv is None else uv)
+            offset += len(mesh.vertices_m)
         textures.extend(mesh.part_textures or (None,) * parts)
         prefix = "" if k == 0 else f"{names[k - 1]}/"
         part_names.extend(prefix + n for n in mesh.part_names)
@@ -224,7 +229,6 @@ def merge_scene(
         owner.extend([k + 1] * parts)
         for key, value in mesh.materials.items():
             materials.setdefault(key, value)
-        offset += len(mesh.vertices_m)
         part_offset += parts
     merged = TargetMesh(
         np.concatenate(verts),
