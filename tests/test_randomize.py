@@ -285,3 +285,31 @@ def test_the_earth_moves_behind_the_target_on_hand_placed_views() -> None:
         bare = plain.render(i)
         assert np.array_equal(bare.image.object_mask, mask)
         assert not np.any(bare.image.background_id == 1)  # the scenario's Earth: out of view
+
+
+def test_a_drawn_cloud_cover_reaches_the_frames_earth_map() -> None:
+    """``cloud_fraction: [0.6, 0.65]`` draws one of its two levels per frame; the frame's
+    Earth is lit from the map built for that cover (its description holds it), recorded
+    under ``randomized.earth.cloud_fraction``, and each map keeps the Bond albedo 0.30 as
+    its area mean (the cloud albedo is calibrated per cover; 16-bit map values)."""
+    from satsight.lighting.earth_surface import BOND_ALBEDO, map_mean_albedo
+
+    base = scenario_dict({"mode": "fixed", "time_s": 0.0005})
+    base["earth"] = {**base["earth"], "surface": "map"}
+    base["randomize"] = {
+        "earth": {"surface_map_probability": 1.0, "behind_probability": 0.0,
+                  "cloud_fraction": [0.6, 0.65]},
+    }  # fmt: skip
+    engine = FrameEngine(parse_scenario(base, "test"))
+    seen = {}
+    for i in range(FRAMES):
+        frame = engine.render(i)
+        record, _, _ = engine.finish(frame)
+        cover = record["randomized"]["earth"]["cloud_fraction"]
+        assert cover in (0.6, 0.65)
+        (earth,) = [b for b in frame.light.bodies if b.name == "earth"]
+        assert f'"cloud_fraction": {cover}' in earth.albedo_map.description
+        assert map_mean_albedo(earth.albedo_map) == pytest.approx(BOND_ALBEDO, abs=1e-4)
+        seen[cover] = earth.albedo_map.albedo_rgb
+    assert set(seen) == {0.6, 0.65}  # the seeded draws give both levels in four frames
+    assert not np.array_equal(seen[0.6], seen[0.65])

@@ -82,8 +82,8 @@ class FrameVariation:
 
     # --- lighting -------------------------------------------------------------------------
     def light_scenario(self, draws: FrameDraws) -> Scenario:
-        """The scenario with the frame's Earth (its surface, cloud pattern and a uniform
-        Earth's albedo) in place of the scenario's."""
+        """The scenario with the frame's Earth (its surface, cloud pattern and cover, and a
+        uniform Earth's albedo) in place of the scenario's."""
         earth = self.scenario.earth
         if draws.earth is None or earth is None:
             return self.scenario
@@ -94,13 +94,14 @@ class FrameVariation:
             if isinstance(albedo, float | int)
             else tuple(min(1.0, a * d.albedo_scale) for a in albedo)
         )
-        varied = earth.model_copy(
-            update={
-                "albedo": scaled,
-                "surface": d.surface,
-                "cloud_seed": earth.cloud_seed + d.cloud_pattern,
-            }
-        )
+        update = {
+            "albedo": scaled,
+            "surface": d.surface,
+            "cloud_seed": earth.cloud_seed + d.cloud_pattern,
+        }
+        if d.cloud_fraction is not None:
+            update["cloud_fraction"] = d.cloud_fraction
+        varied = earth.model_copy(update=update)
         return self.scenario.model_copy(update={"earth": varied})
 
     def earth_direction_cam(self, draws: FrameDraws | None) -> np.ndarray | None:
@@ -204,6 +205,11 @@ class FrameVariation:
                 "albedo_scale": d.albedo_scale,
                 "surface": d.surface,
                 "cloud_pattern": d.cloud_pattern,
+                "cloud_fraction": (
+                    self.scenario.earth.cloud_fraction
+                    if d.cloud_fraction is None and self.scenario.earth is not None
+                    else d.cloud_fraction
+                ),
                 "behind": behind,
                 "behind_offset_rad": self._behind(d)[1] if behind else 0.0,
                 "applies": self.scenario.earth is not None,

@@ -3,6 +3,7 @@ groups, and distributed as documented (means within sample-count tolerances)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -27,6 +28,7 @@ from satsight.randomization.ranges import (
     RandomizationRanges,
     SensorRanges,
     SunRanges,
+    cloud_fraction_levels,
 )
 
 ALL = RandomizationRanges(
@@ -125,6 +127,25 @@ def test_earth_draws_pick_every_cloud_pattern_and_the_map_at_its_rate() -> None:
     mapped = np.mean([d.surface == "map" for d in draws])
     assert abs(mapped - 0.7) < Z * math.sqrt(0.7 * 0.3 / N_FRAMES)
     assert all(0.8 <= d.albedo_scale <= 1.2 for d in draws)
+
+
+def test_the_cloud_cover_is_drawn_among_its_levels_and_changes_no_other_draw() -> None:
+    """[0.5, 0.8] gives the seven levels 0.5, 0.55 .. 0.8, each drawn with probability
+    1/7 (binomial bounds); the cover's number comes after the others, so every other
+    Earth draw of a frame is the one drawn without it."""
+    assert np.allclose(cloud_fraction_levels((0.5, 0.8)), np.arange(7) * 0.05 + 0.5)
+    assert np.allclose(cloud_fraction_levels((0.6, 0.6)), [0.6])
+    assert len(cloud_fraction_levels((0.3, 0.32))) == 1  # less than half a step apart
+    ranges = EarthRanges(cloud_fraction=(0.5, 0.8))
+    draws = [draw_earth(ranges, 9, i) for i in range(N_FRAMES)]
+    levels = np.round((np.array([d.cloud_fraction for d in draws]) - 0.5) / 0.05)
+    counts = np.bincount(levels.astype(int), minlength=7)
+    assert counts.size == 7
+    assert np.all(np.abs(counts / N_FRAMES - 1 / 7) < Z * math.sqrt(1 / 7 * 6 / 7 / N_FRAMES))
+    plain = [draw_earth(EarthRanges(), 9, i) for i in range(50)]
+    assert all(p.cloud_fraction is None for p in plain)
+    for with_cover, without in zip(draws, plain, strict=False):
+        assert dataclasses.replace(with_cover, cloud_fraction=None) == without
 
 
 def test_materials_are_swapped_at_their_probability() -> None:

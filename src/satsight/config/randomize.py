@@ -77,13 +77,16 @@ class SunRandomizeConfig(_Strict):
 class EarthRandomizeConfig(_Strict):
     """Factor on a uniform Earth's albedo, the chance the Earth is drawn with its albedo map
     (else uniform), how many cloud patterns the map's clouds are drawn from (each new one
-    costs ~20 s once), and on hand-placed views the chance that the Earth is moved behind
-    the target. Applies where the scenario has ``earth``."""
+    costs ~20 s once), the range of the map's mean cloud cover (drawn among levels ~0.05
+    apart, each level's map built once; default the scenario's), and on hand-placed views
+    the chance that the Earth is moved behind the target. Applies where the scenario has
+    ``earth``."""
 
     albedo_scale: Pair = EarthRanges().albedo_scale
     surface_map_probability: float = EarthRanges().surface_map_probability
     cloud_patterns: int = EarthRanges().cloud_patterns
     behind_probability: float = EarthRanges().behind_probability
+    cloud_fraction: Pair | None = None
 
     def build(self) -> EarthRanges:
         return EarthRanges(
@@ -91,6 +94,7 @@ class EarthRandomizeConfig(_Strict):
             self.surface_map_probability,
             self.cloud_patterns,
             self.behind_probability,
+            self.cloud_fraction,
         )
 
 

@@ -28,6 +28,7 @@ key holds every parameter. The mask's per-cell sample counts are cached there to
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from dataclasses import asdict, dataclass
@@ -169,6 +170,15 @@ def cloud_noise(seed: int) -> np.ndarray:
     return total - total.mean()
 
 
+@functools.lru_cache(maxsize=2)
+def _kept_cloud_noise(seed: int) -> np.ndarray:
+    """``cloud_noise(seed)``, read-only, kept for the next map of the same pattern (a
+    randomised cloud cover builds one map per level from it: ~1.5 s, not ~14 s)."""
+    noise = cloud_noise(seed)
+    noise.flags.writeable = False
+    return noise
+
+
 def cloud_cover(noise: np.ndarray, fraction: float, weights: np.ndarray) -> np.ndarray:
     """Cloud cover in [0, 1] from the noise: a linear ramp of width 0.3 noise std around a
     threshold chosen (bisection) so that the area-weighted mean cover is ``fraction``."""
@@ -194,7 +204,7 @@ def build_albedo_map(model: EarthSurfaceModel) -> AlbedoMap:
     area = np.broadcast_to(np.cos(np.radians(lat))[:, None], land.shape)
     land_albedo = np.where(lat[:, None] < _ICE_LATITUDE_DEG, model.ice_albedo, model.land_albedo)
     surface = land * land_albedo + (1.0 - land) * model.ocean_albedo
-    cover = cloud_cover(cloud_noise(model.cloud_seed), model.cloud_fraction, area)
+    cover = cloud_cover(_kept_cloud_noise(model.cloud_seed), model.cloud_fraction, area)
     cloud_albedo = model.cloud_albedo
     if cloud_albedo is None:
         clear = float(np.average((1.0 - cover) * surface, weights=area))

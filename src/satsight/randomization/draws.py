@@ -24,6 +24,7 @@ from satsight.randomization.ranges import (
     RandomizationRanges,
     SensorRanges,
     SunRanges,
+    cloud_fraction_levels,
 )
 
 
@@ -89,7 +90,8 @@ class EarthDraw:
     """albedo_scale (a uniform Earth's); surface "map" or "uniform"; cloud_pattern: which
     of the patterns (0 the scenario's cloud seed, k its seed + k); behind: the Earth is
     moved behind the target, its centre off the line of sight by the cap angle of
-    ``behind_offset_u`` (a uniform number) towards ``behind_azimuth_rad``."""
+    ``behind_offset_u`` (a uniform number) towards ``behind_azimuth_rad``; cloud_fraction:
+    the map's mean cloud cover (None: the scenario's)."""
 
     albedo_scale: float
     surface: str
@@ -97,6 +99,7 @@ class EarthDraw:
     behind: bool = False
     behind_offset_u: float = 0.0
     behind_azimuth_rad: float = 0.0
+    cloud_fraction: float | None = None
 
 
 @dataclass(frozen=True)
@@ -160,7 +163,12 @@ def draw_sun(ranges: SunRanges, seed: int, plan_index: int, hand_placed: bool) -
 
 
 def draw_earth(ranges: EarthRanges, seed: int, plan_index: int) -> EarthDraw:
-    u = group_rng(seed, plan_index, "earth").random(6)
+    # The cover's number comes last: the others are the same with it or without it.
+    u = group_rng(seed, plan_index, "earth").random(7)
+    cloud_fraction = None
+    if ranges.cloud_fraction is not None:
+        levels = cloud_fraction_levels(ranges.cloud_fraction)
+        cloud_fraction = float(levels[min(int(u[6] * len(levels)), len(levels) - 1)])
     return EarthDraw(
         albedo_scale=_uniform(u[0], ranges.albedo_scale),
         surface="map" if u[1] < ranges.surface_map_probability else "uniform",
@@ -168,6 +176,7 @@ def draw_earth(ranges: EarthRanges, seed: int, plan_index: int) -> EarthDraw:
         behind=bool(u[3] < ranges.behind_probability),
         behind_offset_u=float(u[4]),
         behind_azimuth_rad=2.0 * math.pi * float(u[5]),
+        cloud_fraction=cloud_fraction,
     )
 
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+import numpy as np
+
 from satsight.errors import SatsightError
 
 Interval = tuple[float, float]
@@ -93,13 +95,28 @@ class SunRanges:
 EARTH_BEHIND_CAP_FRACTION = 0.8
 
 
+#: About how far apart the drawn levels of the cloud cover are (``EarthRanges``).
+CLOUD_FRACTION_STEP = 0.05
+
+
+def cloud_fraction_levels(interval: Interval) -> np.ndarray:
+    """The cloud-cover levels of ``interval`` [low, high]: evenly spaced from low to high,
+    about ``CLOUD_FRACTION_STEP`` apart (one level when low == high)."""
+    low, high = interval
+    count = max(1, round((high - low) / CLOUD_FRACTION_STEP) + 1)
+    return np.linspace(low, high, count)
+
+
 @dataclass(frozen=True)
 class EarthRanges:
     """albedo_scale: factor on the albedo of a uniform Earth (clipped to 1); a mapped Earth
     keeps its map's values. surface_map_probability: the chance that the Earth is drawn
     with its albedo map, else uniform. cloud_patterns: the map's clouds are one of this many
     patterns (the scenario's cloud seed and the next ones); each new pattern's map is built
-    once, in ~20 s on two cores, then read from the disk cache. behind_probability: on
+    once, in ~20 s on two cores, then read from the disk cache. cloud_fraction: the map's
+    mean cloud cover drawn among evenly spaced levels from its low to its high end about
+    ``CLOUD_FRACTION_STEP`` apart (``cloud_fraction_levels``), each level's map built once
+    (~1.5 s once its pattern is in memory); None keeps the scenario's. behind_probability: on
     hand-placed views, the chance that the Earth is moved behind the target, its centre
     within ``EARTH_BEHIND_CAP_FRACTION`` of its angular radius of the line of sight (else
     it stays where the scenario puts it)."""
@@ -108,6 +125,7 @@ class EarthRanges:
     surface_map_probability: float = 0.8
     cloud_patterns: int = 1
     behind_probability: float = 0.5
+    cloud_fraction: Interval | None = None
 
     def __post_init__(self) -> None:
         check_interval("randomize.earth.albedo_scale", self.albedo_scale, 0.0, 10.0)
@@ -121,6 +139,12 @@ class EarthRanges:
                 "randomize.earth.behind_probability must be within [0, 1], got "
                 f"{self.behind_probability:g}"
             )
+        if self.cloud_fraction is not None:
+            # Below 0.2 no cloud albedo <= 1 brings the map's mean to the Bond albedo.
+            fraction = check_interval(
+                "randomize.earth.cloud_fraction", self.cloud_fraction, 0.2, 1.0
+            )
+            object.__setattr__(self, "cloud_fraction", fraction)
         if isinstance(self.cloud_patterns, bool) or not 1 <= self.cloud_patterns <= 64:
             raise SatsightError(
                 "randomize.earth.cloud_patterns must be a whole number within [1, 64], got "
