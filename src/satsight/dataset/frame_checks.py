@@ -1,6 +1,7 @@
 """The checks of one frame: its pose labels, its files, and the labels against the images.
 
-Tolerances, and why:
+Tolerances, and why (the pose checks and their constants live in
+``satsight.dataset.pose_checks``):
 
 - Quaternion norm within ``QUATERNION_NORM_TOLERANCE`` of 1: labels are written normalised
   in float64 and JSON keeps every bit, so any larger error is an edit.
@@ -26,14 +27,16 @@ from pathlib import Path
 import numpy as np
 
 from satsight.dataset.file_checks import read_frame_file
-from satsight.dataset.labels import keypoints_visible, mask_bbox_xyxy_px
+from satsight.dataset.labels import mask_bbox_xyxy_px
 from satsight.dataset.object_checks import check_object_masks
+from satsight.dataset.pose_checks import (
+    FLOAT64_RTOL,
+    PoseChecks,
+    close_to,
+    number_text,
+)
 from satsight.dataset.problems import Findings
-from satsight.frames.quaternion import matrix_from_quaternion
 
-QUATERNION_NORM_TOLERANCE = 1e-9
-KEYPOINT_RTOL = 1e-6
-FLOAT64_RTOL = 1e-9  # depths, ranges, K entries and fractions recomputed in float64
 DEPTH_RTOL = 1e-5
 DEPTH_ATOL_M = 1e-3
 BBOX_MARGIN_PX = 1.0
@@ -55,7 +58,7 @@ class TargetPoints:
     box_is_keypoints: bool = False
 
 
-class FrameCheck:
+class FrameCheck(PoseChecks):
     """Checks of one frame record and its files; problems go to ``self.findings``.
 
     root: the dataset folder. frame: the frame's record. points: the target's keypoints and
@@ -143,141 +146,6 @@ class FrameCheck:
             )
 
     # --- pose -----------------------------------------------------------------------------
-    def check_pose(self) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Unit quaternion, qw >= 0, keypoints, their depths and the range from the pose.
-
-        Returns the box's corners and centre and the keypoints in the camera frame ((9, 3),
-        (N, 3), metres), each None when the pose or the points cannot be read.
-        """
-        self.findings.ran("pose")
-        try:
-            q = np.array(self.frame["q_cam_from_body"], dtype=np.float64)
-            t = np.array(self.frame["t_cam_from_body_m"], dtype=np.float64)
-            K = np.array(self.frame["K"], dtype=np.float64)
-        except (KeyError, TypeError, ValueError) as error:
-            self.problem(
-                "pose",
-                f"expected q_cam_from_body, t_cam_from_body_m and K, found "
-                f"an unreadable pose ({error!r})",
-            )
-            return None, None
-        if (
-            q.shape != (4,)
-            or t.shape != (3,)
-            or K.shape != (3, 3)
-            or not (np.isfinite(q).all() and np.isfinite(t).all() and np.isfinite(K).all())
-        ):
-            self.problem(
-                "pose",
-                f"expected a finite quaternion (4), translation (3) and K "
-                f"(3x3), found shapes {q.shape}, {t.shape}, {K.shape}",
-            )
-            return None, None
-        norm = float(np.linalg.norm(q))
-        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
-            self.problem("pose", f"expected a unit q_cam_from_body, found norm {norm:.12g}")
-        if q[0] < 0:
-            self.problem("pose", f"expected q_cam_from_body with qw >= 0, found qw = {q[0]:g}")
-        if norm == 0:
-            return None, None
-        range_m = self.frame.get("range_m")
-        if range_m is not None and not _close(range_m, float(np.linalg.norm(t)), FLOAT64_RTOL):
-            self.problem(
-                "pose",
-                f"expected range_m = |t_cam_from_body_m| = "
-                f"{np.linalg.norm(t):.9g}, found {range_m}",
-            )
-        R = matrix_from_quaternion(q)
-        keypoints_cam = self.check_point_labels(self.points.keypoints_body_m, R, t, K, "keypoints")
-        if self.points.box_is_keypoints:
-            return keypoints_cam, keypoints_cam
-        box_cam = self.check_point_labels(
-            self.points.box_keypoints_body_m, R, t, K, "box_keypoints"
-        )
-        return box_cam, keypoints_cam
-
-    def check_point_labels(
-        self,
-        points_body_m: np.ndarray | None,
-        R: np.ndarray,
-        t: np.ndarray,
-        K: np.ndarray,
-        name: str,
-    ) -> np.ndarray | None:
-        """``{name}_px`` and ``{name}_depth_m`` against the points under the pose; returns
-        the points in the camera frame (None without points)."""
-        if points_body_m is None:
-            return None
-        points_cam = points_body_m @ R.T + t
-        self.check_keypoints(self.frame.get(f"{name}_px"), points_cam, K, "pose", f"{name}_px")
-        depths = self.frame.get(f"{name}_depth_m")
-        if depths is not None and not _close_list(depths, points_cam[:, 2], FLOAT64_RTOL):
-            self.problem(
-                "pose",
-                f"expected {name}_depth_m equal to the points' z under "
-                f"the pose, {_fmt(points_cam[:, 2])}, found {_fmt(depths)}",
-            )
-        return points_cam
-
-    def check_keypoints_visible(self, images: dict, keypoints_cam: np.ndarray) -> None:
-        """keypoints_visible as the depth image decides it (when both are there)."""
-        labelled, depth = self.frame.get("keypoints_visible"), images.get("depth_exr")
-        if labelled is None or depth is None:
-            return
-        K = np.array(self.frame["K"], dtype=np.float64)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            uvw = keypoints_cam @ K.T
-            uv = np.where(uvw[:, 2:] > 0, uvw[:, :2] / uvw[:, 2:], np.nan)
-        expected = keypoints_visible(uv, keypoints_cam[:, 2], depth).tolist()
-        if labelled != expected:
-            wrong = [i for i, (a, b) in enumerate(zip(labelled, expected, strict=False)) if a != b]
-            self.problem(
-                "pose",
-                f"expected keypoints_visible {expected} (the keypoints against the depth "
-                f"image), found {labelled} (differs at {wrong})",
-                (self.frame.get("files") or {}).get("depth_exr"),
-            )
-
-    def check_keypoints(
-        self, labelled, points_cam: np.ndarray, K: np.ndarray, check: str, name: str
-    ) -> None:
-        """Labelled keypoints (pixels, None behind the camera) against their projection."""
-        if not isinstance(labelled, list) or len(labelled) != len(points_cam):
-            count = len(labelled) if isinstance(labelled, list) else labelled
-            self.problem(check, f"expected {len(points_cam)} {name}, found {count}")
-            return
-        projected = points_cam @ K.T
-        if _keypoints_clearly_right(labelled, projected):
-            return
-        worst: tuple[float, int, str, str] | None = None
-        for i, (label, point) in enumerate(zip(labelled, projected, strict=True)):
-            if point[2] <= 0:
-                if label is not None:
-                    self.problem(
-                        check,
-                        f"expected {name}[{i}] null (behind the camera under "
-                        f"the pose), found {label}",
-                    )
-                continue
-            uv = point[:2] / point[2]
-            try:
-                found = np.array(label, dtype=np.float64)
-                error = float(np.linalg.norm(found - uv))
-            except (TypeError, ValueError):
-                error, found = np.inf, label
-            if not np.isfinite(error):
-                error = np.inf
-            tolerance = KEYPOINT_RTOL * max(1.0, float(np.linalg.norm(uv)))
-            if not error <= tolerance and (worst is None or error > worst[0]):
-                worst = (error, i, _fmt(uv), _fmt(found))
-        if worst is not None:
-            error, i, expected, found = worst
-            self.problem(
-                check,
-                f"expected {name}[{i}] = {expected} (K and the pose applied to "
-                f"keypoints_body_m), found {found}: {error:.3g} px off",
-            )
-
     # --- labels against the images --------------------------------------------------------
     def check_images(self, images: dict, labels: dict, files: dict, check: str) -> None:
         """Box from the object mask; part mask and depth nonzero exactly where the mask is;
@@ -357,7 +225,9 @@ class FrameCheck:
             if key not in labels:
                 continue
             found = labels[key]
-            same = found == value if isinstance(value, bool | int) else _close(found, value, 1e-12)
+            same = (
+                found == value if isinstance(value, bool | int) else close_to(found, value, 1e-12)
+            )
             if not same:
                 self.problem(
                     check, f"expected {key} {value} (from the object mask), found {found}", file
@@ -394,7 +264,7 @@ class FrameCheck:
                 self.problem(
                     "pose",
                     f"expected the object mask inside the projected box of the "
-                    f"target, {_fmt([*lo, *hi])} px, found its box at "
+                    f"target, {number_text([*lo, *hi])} px, found its box at "
                     f"{[x0, y0, x1, y1]}",
                     files["object_mask_png"],
                 )
@@ -456,48 +326,9 @@ class FrameCheck:
             )
 
 
-def _keypoints_clearly_right(labelled: list, projected: np.ndarray) -> bool:
-    """Whether every labelled keypoint is a pixel within (a hair under) its tolerance of
-    its projection (N, 3 homogeneous), checked for all at once; False sends the keypoints
-    to the point-by-point check, which words the problems (and decides the borderline)."""
-    if not (projected[:, 2] > 0).all():
-        return False
-    try:
-        found = np.array(labelled, dtype=np.float64)
-    except (TypeError, ValueError):
-        return False
-    if found.shape != (len(projected), 2):
-        return False
-    uv = projected[:, :2] / projected[:, 2:]
-    error = np.sqrt(((found - uv) ** 2).sum(axis=1))
-    tolerance = KEYPOINT_RTOL * np.maximum(1.0, np.sqrt((uv**2).sum(axis=1)))
-    return bool((error <= (1.0 - 1e-6) * tolerance).all())
-
-
 def _is_size(size) -> bool:
     return (
         isinstance(size, list)
         and len(size) == 2
         and all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in size)
     )
-
-
-def _close(found, expected: float, rtol: float) -> bool:
-    try:
-        return abs(float(found) - expected) <= rtol * max(1.0, abs(expected))
-    except (TypeError, ValueError):
-        return False
-
-
-def _close_list(found, expected: np.ndarray, rtol: float) -> bool:
-    if not isinstance(found, list) or len(found) != len(expected):
-        return False
-    return all(_close(f, float(e), rtol) for f, e in zip(found, expected, strict=True))
-
-
-def _fmt(values) -> str:
-    """A short text of a number list (6 significant digits)."""
-    try:
-        return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"
-    except (TypeError, ValueError):
-        return repr(values)
