@@ -205,15 +205,12 @@ class FrameVariation:
                 "albedo_scale": d.albedo_scale,
                 "surface": d.surface,
                 "cloud_pattern": d.cloud_pattern,
-                "cloud_fraction": (
-                    self.scenario.earth.cloud_fraction
-                    if d.cloud_fraction is None and self.scenario.earth is not None
-                    else d.cloud_fraction
-                ),
                 "behind": behind,
                 "behind_offset_rad": self._behind(d)[1] if behind else 0.0,
                 "applies": self.scenario.earth is not None,
             }
+            if d.cloud_fraction is not None:  # drawn (else the scenario's cover)
+                out["earth"]["cloud_fraction"] = d.cloud_fraction
         if draws.sensor is not None:
             out["sensor"] = sensor_record(sensor, draws.sensor)
         if draws.pose is not None:
