@@ -97,3 +97,53 @@ def test_exr_holds_several_channel_groups(tmp_path: Path, rng) -> None:
     assert set(back) == {"RGB", "Z"}
     np.testing.assert_array_equal(back["RGB"].view(np.uint32), rgb.view(np.uint32))
     np.testing.assert_array_equal(back["Z"].view(np.uint32), z.view(np.uint32))
+
+
+def test_a_data_window_stores_only_its_pixels_and_reads_back_whole(tmp_path: Path, rng) -> None:
+    """Pixels inside the window come back bit-exact, those outside as 0, over the whole
+    image; the file holds the window alone (OpenEXR's header names it, the display window
+    stays the image), so a window over a few pixels makes a file of a few hundred bytes."""
+    import OpenEXR
+
+    from satsight.dataset.frame_files import surface_window
+
+    depth = np.zeros(SHAPE, dtype=np.float32)
+    depth[5:9, 20:31] = rng.uniform(10.0, 20.0, size=(4, 11))
+    window = surface_window((depth > 0).astype(np.uint16))
+    assert window == (20, 5, 31, 9)
+    write_exr(tmp_path / "d.exr", {"Z": depth}, window)
+    write_exr(tmp_path / "full.exr", {"Z": depth})
+    np.testing.assert_array_equal(read_exr(tmp_path / "d.exr")["Z"], depth)
+    with OpenEXR.File(str(tmp_path / "d.exr"), header_only=True) as exr:
+        low, high = exr.header()["dataWindow"]
+        assert low.tolist() == [20, 5] and high.tolist() == [30, 8]
+        low, high = exr.header()["displayWindow"]
+        assert low.tolist() == [0, 0] and high.tolist() == [SHAPE[1] - 1, SHAPE[0] - 1]
+    assert (tmp_path / "d.exr").stat().st_size < (tmp_path / "full.exr").stat().st_size
+    # No surface at all: one stored pixel, still the whole image when read.
+    empty = np.zeros(SHAPE, dtype=np.float32)
+    assert surface_window(empty.astype(np.uint16)) == (0, 0, 0, 0)
+    write_exr(tmp_path / "e.exr", {"Z": empty}, (0, 0, 0, 0))
+    np.testing.assert_array_equal(read_exr(tmp_path / "e.exr")["Z"], empty)
+    with pytest.raises(ValueError, match="outside"):
+        write_exr(tmp_path / "bad.exr", {"Z": depth}, (0, 0, SHAPE[1] + 1, 2))
+
+
+def test_half_float_channels_keep_unit_normals_to_half_precision(tmp_path: Path, rng) -> None:
+    """Channels stored as half floats round each value to 11 significant bits: a unit
+    normal's components come back within 2^-11 relative (half an ulp is 2^-11 of the
+    value's power of two), its length within 1e-3 of 1 (the validator's tolerance), as
+    float32."""
+    n = rng.normal(size=(*SHAPE, 3))
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    planes = {c: n[..., k].astype(np.float32) for k, c in enumerate("XYZ")}
+    write_exr(tmp_path / "n.exr", planes, half=("X", "Y", "Z"))
+    back = read_exr(tmp_path / "n.exr")
+    for k, c in enumerate("XYZ"):
+        assert back[c].dtype == np.float32
+        np.testing.assert_allclose(back[c], n[..., k], rtol=2.0**-11, atol=2.0**-25)
+    length = np.sqrt(sum(back[c].astype(np.float64) ** 2 for c in "XYZ"))
+    assert np.abs(length - 1).max() < 1e-3
+    full = tmp_path / "f.exr"
+    write_exr(full, planes)
+    assert (tmp_path / "n.exr").stat().st_size < full.stat().st_size

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import imagecodecs
 import numpy as np
-import OpenEXR
 
+from satsight.dataset.image_files import exr_channels
 from satsight.dataset.problems import Findings
 
 # A stored normal is unit to float32 rounding; 1e-3 leaves room for any renormalisation.
@@ -50,9 +50,9 @@ def _first_pixel(bad: np.ndarray) -> str:
 
 
 def _decode_exr(path: Path, channels: tuple[str, ...]) -> list[np.ndarray]:
-    """The named channels of an OpenEXR file, each an (H, W) float32 plane."""
-    with OpenEXR.File(str(path), separate_channels=True) as exr:
-        stored = {name: channel.pixels for name, channel in exr.channels().items()}
+    """The named channels of an OpenEXR file, each an (H, W) float32 plane over the whole
+    image (``exr_channels``: 0 outside the data window, half floats widened)."""
+    stored = exr_channels(path, separate=True)
     missing = [name for name in channels if name not in stored]
     if missing:
         raise ValueError(

@@ -125,6 +125,21 @@ def _png_bytes(key: str, arrays: FrameArrays, preview: PreviewStretch) -> bytes:
     raise KeyError(key)
 
 
+#: EXR files stored over the target's window (data window), and their half-float channels.
+WINDOWED_EXR = ("depth_exr", "normals_exr")
+HALF_EXR_CHANNELS = {"normals_exr": ("X", "Y", "Z")}
+
+
+def surface_window(part_id: np.ndarray) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1): the smallest box holding every pixel that sees a surface (part id
+    > 0; depth and normals are 0 elsewhere), empty (0, 0, 0, 0) when none does."""
+    rows = np.flatnonzero(part_id.any(axis=1))
+    if rows.size == 0:
+        return 0, 0, 0, 0
+    cols = np.flatnonzero(part_id[rows[0] : rows[-1] + 1].any(axis=0))
+    return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
+
+
 def _exr_channels(key: str, arrays: FrameArrays) -> dict[str, np.ndarray]:
     image = arrays.image
     if key == "radiance_exr":
@@ -146,7 +161,9 @@ def _write_file(
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         if key.endswith("_exr"):
-            write_exr(tmp, _exr_channels(key, arrays))
+            window = surface_window(arrays.image.part_id) if key in WINDOWED_EXR else None
+            half = HALF_EXR_CHANNELS.get(key, ())
+            write_exr(tmp, _exr_channels(key, arrays), window, half)
             checksum = file_checksum(tmp)
         else:
             data = _png_bytes(key, arrays, preview)
