@@ -21,3 +21,13 @@ def test_codata_constants_are_the_exact_si_values():
     assert constants.PLANCK_J_S == 6.62607015e-34
     assert constants.SPEED_OF_LIGHT_M_S == 299_792_458.0
     assert constants.BOLTZMANN_J_K == 1.380649e-23
+
+
+def test_the_stefan_boltzmann_constant_is_codatas():
+    # CODATA 2018 (exact in the SI since 2019, to the ten digits given): 5.670374419e-8.
+    import scipy.constants
+
+    assert constants.STEFAN_BOLTZMANN_W_M2_K4 == pytest.approx(5.670374419e-8, rel=1e-10)
+    assert constants.STEFAN_BOLTZMANN_W_M2_K4 == pytest.approx(
+        scipy.constants.Stefan_Boltzmann, rel=1e-15
+    )

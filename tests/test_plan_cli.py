@@ -13,7 +13,6 @@ import yaml
 from cli_runner import invoke_satsight, run_satsight
 from satsight.cli import example_scenario_path, main
 from satsight.config.scenario import load_scenario
-from satsight.pipeline import build_target
 from satsight.poses.plan import plan_track
 
 EXAMPLES = example_scenario_path().parent
@@ -45,7 +44,7 @@ def _example(name: str) -> dict:
 )
 def test_examples_plan(example: str, frames: int) -> None:
     scenario = load_scenario(EXAMPLES / example)
-    track = plan_track(scenario.plan_request(), build_target(scenario.target).center_m)
+    track = plan_track(scenario.plan_request(), scenario.target.build().center_m)
     assert len(track) == frames
     assert track.visible.any()
 
@@ -89,7 +88,7 @@ def approach_dataset(tmp_path_factory) -> tuple[Path, Path]:
 def test_generate_renders_the_visible_frames_of_the_plan(approach_dataset) -> None:
     config, out = approach_dataset
     scenario = load_scenario(config)
-    track = plan_track(scenario.plan_request(), build_target(scenario.target).center_m)
+    track = plan_track(scenario.plan_request(), scenario.target.build().center_m)
     labels = json.loads((out / "labels.json").read_text(encoding="utf-8"))
     frames = labels["frames"]
     visible = np.flatnonzero(track.visible)

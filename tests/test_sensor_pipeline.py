@@ -21,7 +21,7 @@ from qe_oracle import blackbody_qe
 from satsight.cli import main
 from satsight.config.scenario import load_scenario, parse_scenario
 from satsight.dataset.image_files import read_png
-from satsight.pipeline import build_sensor, build_target, expose_frame, planned_frames
+from satsight.pipeline import build_sensor, expose_frame, planned_frames
 from satsight.render.buffers import RadianceImage
 from satsight.sensor.star_catalog import load_star_catalog
 from satsight.sensor.star_field import DEFAULT_STAMP_RADIUS_PX, stars_in_view
@@ -122,7 +122,7 @@ def test_star_labels_are_the_catalogue_stars_in_view_less_those_behind_the_targe
     data files; 1e-5: that quadrature against the library's, < 1e-6)."""
     scenario = load_scenario(dataset / "scenario.yaml")
     sensor = build_sensor(scenario)
-    track, indices = planned_frames(scenario, build_target(scenario.target))
+    track, indices = planned_frames(scenario, scenario.target.build())
     catalog = load_star_catalog(scenario.stars.v_mag_limit)
     compared = 0
     for frame, plan_index in zip(labels["frames"], indices, strict=True):
@@ -176,7 +176,7 @@ def test_views_given_in_the_body_frame_get_no_stars() -> None:
     data["camera"]["width_px"] = data["camera"]["height_px"] = 32
     data["frames"] = [{"distance_km": 1.0, "azimuth_deg": 0.0, "elevation_deg": 0.0}]
     scenario = parse_scenario(data, "test")
-    mesh = build_target(scenario.target)
+    mesh = scenario.target.build()
     track, _ = planned_frames(scenario, mesh)
     assert not track.has_sky
     sensor = build_sensor(scenario)

@@ -5,16 +5,23 @@ SI units throughout; every module that needs one of these imports it from here.
 
 from __future__ import annotations
 
-import scipy.constants as _codata
+import math
 
-# --- Fundamental constants (CODATA 2018, exact in the SI since 2019; scipy.constants) ---
+# --- Fundamental constants (exact in the SI since its 2019 revision: BIPM, "The
+# International System of Units", 9th ed., 2019, Table 1; the values scipy.constants
+# holds, written out so that importing them does not load scipy) ---
 
 #: Planck constant h, J s.
-PLANCK_J_S: float = _codata.h
+PLANCK_J_S: float = 6.626_070_15e-34
 #: Speed of light in vacuum c, m s^-1.
-SPEED_OF_LIGHT_M_S: float = _codata.c
+SPEED_OF_LIGHT_M_S: float = 299_792_458.0
 #: Boltzmann constant k, J K^-1.
-BOLTZMANN_J_K: float = _codata.k
+BOLTZMANN_J_K: float = 1.380_649e-23
+#: Stefan-Boltzmann constant sigma = 2 pi^5 k^4 / (15 h^3 c^2), W m^-2 K^-4 (exact from
+#: the three above; 5.670374419e-8 to CODATA 2018's ten digits).
+STEFAN_BOLTZMANN_W_M2_K4: float = (
+    2.0 * math.pi**5 * BOLTZMANN_J_K**4 / (15.0 * PLANCK_J_S**3 * SPEED_OF_LIGHT_M_S**2)
+)
 
 # --- Astronomy ---
 

@@ -13,8 +13,7 @@ import numpy as np
 
 from satsight.camera.pinhole import PinholeCamera
 from satsight.config.camera import CameraConfig
-from satsight.config.scenario import Scenario, TargetConfig
-from satsight.constants import DEFAULT_BAND_NM
+from satsight.config.scenario import Scenario
 from satsight.dataset.frame_files import OBJECT_FILE_KEYS, FrameArrays
 from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
@@ -36,46 +35,12 @@ from satsight.render.motion import (
     render_over_exposure,
 )
 from satsight.render.renderer import Renderer
-from satsight.scene.band_reflectance import builtins_from_library, library_materials
 from satsight.scene.keypoints import target_keypoints_body_m
-from satsight.scene.loading import load_mesh
-from satsight.scene.material_library import LIBRARY_PREFIX
-from satsight.scene.materials import FIRST_MATERIALS
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.objects import SceneMesh
-from satsight.scene.procedural import generate_satellite
 from satsight.sensor.chain import DnImage, SensorChain, exposure_regions
 from satsight.sensor.frame_stars import add_frame_stars
 from satsight.sensor.photometry import frame_photometry
-
-
-def build_target(config: TargetConfig, band_nm: tuple[float, float] | None = None) -> TargetMesh:
-    """The target mesh a scenario asks for (procedural or loaded from a file). Library
-    materials (a mesh part's ``library:NAME``, or a procedural satellite's ``materials:
-    library``) take their colour from the band ``band_nm`` (the scenario's ``sun.band_nm``;
-    default 450-900 nm)."""
-    p, m = config.procedural, config.mesh
-    if p is not None:
-        library = p.materials == "library"
-        return generate_satellite(
-            p.satellite_class,
-            p.seed,
-            smooth_normals=p.smooth_normals,
-            textures=p.textures,
-            materials=builtins_from_library(band_nm or DEFAULT_BAND_NM) if library else None,
-        )
-    requested = [v for v in m.materials.values() if v.startswith(LIBRARY_PREFIX)]
-    pool = {**FIRST_MATERIALS}
-    if requested:
-        pool.update(library_materials(requested, band_nm or DEFAULT_BAND_NM))
-    return load_mesh(
-        m.path,
-        scale_m=m.scale_m,
-        materials=pool,
-        builtin_materials=m.materials,
-        crease_angle_deg=m.crease_angle_deg,
-        strict_textures=m.strict_textures,
-    )
 
 
 def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:
@@ -205,14 +170,14 @@ class FrameEngine:
         camera = scenario.camera.build()
         check_frame_memory(camera.width_px, camera.height_px)  # before the mesh and renderer
         self.scenario = scenario
-        self.mesh = build_target(scenario.target, scenario.sun.band_nm)
+        self.mesh = scenario.target.build(scenario.sun.band_nm)
         self.keypoints_body_m = target_keypoints_body_m(
             self.mesh, scenario.target.keypoints.build()
         )
         self.camera = camera
         self.track, self.plan_indices = planned_frames(scenario, self.mesh)
         band = scenario.sun.band_nm  # other objects, merged after the target's parts:
-        self.objects = frame_scene(scenario, self.mesh, self.track, lambda c: build_target(c, band))
+        self.objects = frame_scene(scenario, self.mesh, self.track, lambda c: c.build(band))
         self.scene = None if self.objects is None else self.objects.fixed
         self._moving = self.objects is not None and self.objects.moving
         self.sensor = build_sensor(scenario)

@@ -162,7 +162,6 @@ def test_explicit_mapped_coefficients_render_as_the_mapping(llvm_variant):
     """Giving every material its mapped coefficients explicitly changes nothing, textured
     parts (solar cells, radiator strips) included: bit for bit."""
     from satsight.config.scenario import Scenario
-    from satsight.pipeline import build_target
 
     scenario = Scenario.model_validate(
         {
@@ -171,7 +170,7 @@ def test_explicit_mapped_coefficients_render_as_the_mapping(llvm_variant):
             "frames": [{"distance_km": 0.06}],
         }
     )
-    mesh = build_target(scenario.target)
+    mesh = scenario.target.build()
     assert mesh.part_textures  # the textured path is exercised
     explicit = dataclasses.replace(
         mesh,

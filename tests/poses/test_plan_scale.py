@@ -27,7 +27,6 @@ from satsight.cli import example_scenario_path
 from satsight.config.orbital import MAX_FRAMES
 from satsight.config.scenario import load_scenario
 from satsight.frames.orbital import lvlh_from_inertial, relative_rtn, rtn_from_inertial
-from satsight.pipeline import build_target
 from satsight.poses import plan
 from satsight.poses.distance_intervals import (
     DistanceInterval,
@@ -54,7 +53,6 @@ _CHILD = textwrap.dedent(
     """
     import json, sys, time
     from satsight.config.scenario import load_scenario
-    from satsight.pipeline import build_target
     from satsight.poses.plan import plan_track
 
     def status_bytes(key):
@@ -74,7 +72,7 @@ _CHILD = textwrap.dedent(
 
     path, counts = sys.argv[1], [int(c) for c in sys.argv[2:]]
     scenario = load_scenario(path)
-    mesh = build_target(scenario.target)
+    mesh = scenario.target.build()
 
     def with_frames(n):
         sampler = scenario.sampler.model_copy(
@@ -158,7 +156,7 @@ def test_degenerate_orbit_in_a_stack_is_still_refused() -> None:
 
 def test_plan_memory_grows_linearly_not_quadratically() -> None:
     # RSSF frames need no propagation, so the planner itself can be traced quickly.
-    center = build_target(_scenario("rssf_dataset.yaml", 4).target).center_m
+    center = _scenario("rssf_dataset.yaml", 4).target.build().center_m
     peaks = []
     for n in (5_000, 10_000):
         scenario = _scenario("rssf_dataset.yaml", n)
@@ -191,7 +189,7 @@ def test_plan_memory_grows_linearly_not_quadratically() -> None:
 )
 def test_chunked_plan_equals_the_whole(example: str, frames: int) -> None:
     scenario = _scenario(example, frames)
-    center = build_target(scenario.target).center_m
+    center = scenario.target.build().center_m
     whole = plan._orbital_track(scenario.plan_request(), center, chunk_frames=frames)
     for chunk in (1, 7, frames - 1):
         chunked = plan._orbital_track(scenario.plan_request(), center, chunk_frames=chunk)
@@ -213,7 +211,7 @@ def test_chunked_plan_equals_the_whole(example: str, frames: int) -> None:
 
 def test_chunk_size_must_be_a_positive_whole_number() -> None:
     scenario = _scenario("rssf_dataset.yaml", 5)
-    center = build_target(scenario.target).center_m
+    center = scenario.target.build().center_m
     for bad in (0, -3, 2.5, True):
         with pytest.raises(Exception, match="chunk_frames must be a whole number >= 1"):
             plan._orbital_track(scenario.plan_request(), center, chunk_frames=bad)
@@ -222,7 +220,7 @@ def test_chunk_size_must_be_a_positive_whole_number() -> None:
 def test_buried_frame_is_named_by_its_plan_index_across_chunks(monkeypatch) -> None:
     # A frame inside the Earth in a later chunk is reported with its index in the plan.
     scenario = _scenario("fly_around.yaml", 40)
-    center = build_target(scenario.target).center_m
+    center = scenario.target.build().center_m
     real_flight = plan._sspt_flight
 
     def buried_flight(*args):
@@ -439,7 +437,7 @@ def test_plan_csv_in_chunks_writes_every_float_as_repr(tmp_path: Path, monkeypat
     from satsight.poses import plan_table
 
     scenario = _scenario("approach.yaml", 40)
-    track = plan.plan_track(scenario.plan_request(), build_target(scenario.target).center_m)
+    track = plan.plan_track(scenario.plan_request(), scenario.target.build().center_m)
     whole = plan_table.write_plan_csv(track, tmp_path / "whole.csv").read_bytes()
     monkeypatch.setattr(plan_table, "CSV_CHUNK_ROWS", 7)
     chunked = plan_table.write_plan_csv(track, tmp_path / "chunked.csv").read_bytes()

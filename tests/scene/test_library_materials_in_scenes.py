@@ -13,7 +13,6 @@ import pytest
 from pydantic import ValidationError
 
 from satsight.config.scenario import TargetConfig
-from satsight.pipeline import build_target
 from satsight.scene.band_reflectance import material_from_entry
 
 OBJ = """mtllib plate.mtl
@@ -47,7 +46,7 @@ def _material_of(mesh, part: str):
 def test_a_part_takes_the_library_material_for_the_scenario_band(plate: Path) -> None:
     config = TargetConfig(mesh={"path": plate, "materials": {"foil": "library:gold"}})
     for band in ((450.0, 900.0), (500.0, 650.0)):
-        mesh = build_target(config, band)
+        mesh = config.build(band)
         gold = _material_of(mesh, "foil")
         expected = material_from_entry("gold", band)
         assert gold.name == "library:gold"
@@ -61,8 +60,8 @@ def test_a_part_takes_the_library_material_for_the_scenario_band(plate: Path) ->
         assert _material_of(mesh, "panel").base_color_rgb == pytest.approx((0.5, 0.5, 0.5))
     # Gold is yellow over 450-900 nm (its blue third below 500 nm is dark); over 500-650 nm
     # its colour differs: the band decides.
-    wide = _material_of(build_target(config, (450.0, 900.0)), "foil").base_color_rgb
-    narrow = _material_of(build_target(config, (500.0, 650.0)), "foil").base_color_rgb
+    wide = _material_of(config.build((450.0, 900.0)), "foil").base_color_rgb
+    narrow = _material_of(config.build((500.0, 650.0)), "foil").base_color_rgb
     assert wide[2] < wide[0]
     assert not np.allclose(wide, narrow, atol=1e-3)
 
@@ -79,15 +78,12 @@ def test_procedural_satellites_take_the_library_materials_when_asked() -> None:
     from satsight.scene.materials import FIRST_MATERIALS
 
     band = (450.0, 900.0)
-    builtin = build_target(
-        TargetConfig(procedural={"satellite_class": "two_wings", "seed": 2, "materials": "builtin"})
-    )
-    library = build_target(
-        TargetConfig(
-            procedural={"satellite_class": "two_wings", "seed": 2, "materials": "library"}
-        ),
-        band,
-    )
+    builtin = TargetConfig(
+        procedural={"satellite_class": "two_wings", "seed": 2, "materials": "builtin"}
+    ).build()
+    library = TargetConfig(
+        procedural={"satellite_class": "two_wings", "seed": 2, "materials": "library"}
+    ).build(band)
     # Same geometry and part materials by name; the definitions differ where matched.
     np.testing.assert_array_equal(builtin.vertices_m, library.vertices_m)
     assert builtin.part_materials == library.part_materials

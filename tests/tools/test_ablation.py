@@ -184,7 +184,6 @@ def test_fitted_variants_render_with_coefficients_fitted_to_each_part(llvm_varia
     reference keep the scenario's materials. Five materials over the satellite's 19 parts:
     each fit follows its part's own material."""
     from satsight.brdf.reference_fit import fit_phong_to_ggx
-    from satsight.pipeline import build_target
     from satsight.render.settings import DIRECT_SUN_ONLY
     from satsight.render.surface import SurfaceModel
 
@@ -195,7 +194,7 @@ def test_fitted_variants_render_with_coefficients_fitted_to_each_part(llvm_varia
             "frames": [{"distance_km": 0.05}],
         }
     )
-    mesh = build_target(scenario.target)
+    mesh = scenario.target.build()
     meshes, fits = fitted_phong_meshes(mesh, "schlick")
     assert set(meshes) == set(FITTED_VARIANTS) and set(fits) == set(mesh.part_materials)
     for variant, model in FITTED_VARIANTS.items():
@@ -260,13 +259,12 @@ def test_orbital_scenario_ablates_its_lit_frames_only(tmp_path):
     from satsight.cli import example_scenario_path
     from satsight.config.scenario import load_scenario
     from satsight.config.target import TargetConfig
-    from satsight.pipeline import build_target
     from satsight.poses.plan import plan_track
 
     scenario = load_scenario(example_scenario_path().parent / "fly_by.yaml")
     target = TargetConfig.model_validate(_five_material_target(tmp_path))
     scenario = scenario.model_copy(update={"target": target})
-    track = plan_track(scenario.plan_request(), build_target(scenario.target).center_m)
+    track = plan_track(scenario.plan_request(), scenario.target.build().center_m)
     dark = track.sunlit_fraction[:8] == 0.0
     assert dark.any()  # the example's pass crosses the umbra
     planned: list[int] = []

@@ -26,13 +26,12 @@ def plan(config: Path, out_dir: Path, no_plots: bool) -> None:
     from rich.table import Table
 
     from satsight.config.scenario import load_scenario
-    from satsight.pipeline import build_target
     from satsight.poses.plan import frames_to_render, plan_track
     from satsight.poses.plan_plots import write_plan_plots
     from satsight.poses.plan_table import plan_table_rows, write_plan_csv
 
     scenario = load_scenario(config)
-    mesh = build_target(scenario.target, scenario.sun.band_nm)
+    mesh = scenario.target.build(scenario.sun.band_nm)
     request = scenario.plan_request()
     track = plan_track(request, mesh.center_m, mesh.bounding_radius_m)
     rendered = frames_to_render(request, track)

@@ -165,7 +165,7 @@ def placed_objects(
     (``satsight.frame_scene`` places it at each frame).
 
     build_shape: makes a procedural or mesh object as the target is made
-    (``satsight.pipeline.build_target``); debris takes the library materials of
+    (``TargetConfig.build``); debris takes the library materials of
     ``band_nm``.
     """
     placed = []

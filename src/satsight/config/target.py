@@ -8,12 +8,18 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from satsight.constants import DEFAULT_BAND_NM
+from satsight.scene.band_reflectance import builtins_from_library, library_materials
 from satsight.scene.keypoints import (
     DEFAULT_KEYPOINT_COUNT,
     KeypointRule,
     read_keypoints_file,
 )
-from satsight.scene.procedural import SATELLITE_CLASSES
+from satsight.scene.loading import load_mesh
+from satsight.scene.material_library import LIBRARY_PREFIX, list_materials
+from satsight.scene.materials import FIRST_MATERIALS
+from satsight.scene.mesh import TargetMesh
+from satsight.scene.procedural import SATELLITE_CLASSES, generate_satellite
 from satsight.scene.replicas import REPLICA_CLASSES
 
 
@@ -102,8 +108,6 @@ class MeshTargetConfig(_Strict):
     @field_validator("materials")
     @classmethod
     def _known_builtins(cls, value: dict[str, str]) -> dict[str, str]:
-        from satsight.scene.material_library import LIBRARY_PREFIX, list_materials
-        from satsight.scene.materials import FIRST_MATERIALS
 
         library = list_materials()
         known = set(FIRST_MATERIALS) | {LIBRARY_PREFIX + name for name in library}
@@ -129,6 +133,35 @@ class TargetConfig(_Strict):
         if (self.procedural is None) == (self.mesh is None):
             raise ValueError("give exactly one of 'procedural' or 'mesh'")
         return self
+
+    def build(self, band_nm: tuple[float, float] | None = None) -> TargetMesh:
+        """The target mesh this section asks for (procedural or loaded from a file).
+        Library materials (a mesh part's ``library:NAME``, or a procedural satellite's
+        ``materials: library``) take their colour from the band ``band_nm`` (the scenario's
+        ``sun.band_nm``; default 450-900 nm)."""
+        band_nm = band_nm or DEFAULT_BAND_NM
+        p, m = self.procedural, self.mesh
+        if p is not None:
+            library = p.materials == "library"
+            return generate_satellite(
+                p.satellite_class,
+                p.seed,
+                smooth_normals=p.smooth_normals,
+                textures=p.textures,
+                materials=builtins_from_library(band_nm) if library else None,
+            )
+        requested = [v for v in m.materials.values() if v.startswith(LIBRARY_PREFIX)]
+        pool = {**FIRST_MATERIALS}
+        if requested:
+            pool.update(library_materials(requested, band_nm))
+        return load_mesh(
+            m.path,
+            scale_m=m.scale_m,
+            materials=pool,
+            builtin_materials=m.materials,
+            crease_angle_deg=m.crease_angle_deg,
+            strict_textures=m.strict_textures,
+        )
 
     def with_paths_from(self, folder: Path) -> TargetConfig:
         """This section with a relative mesh or keypoints path taken from ``folder`` (the

@@ -44,7 +44,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.integrate import solve_ivp
 from skyfield.timelib import Time
 
 from satsight.constants import EARTH_EQUATORIAL_RADIUS_M
@@ -260,6 +259,8 @@ def _propagate_dop853(state: np.ndarray, times_s: np.ndarray, accel: _Accel) -> 
     if t_end == 0.0:
         return np.repeat(state[None, :], times_s.size, axis=0)
     atol = np.array([DOP853_ATOL_POSITION_M] * 3 + [DOP853_ATOL_VELOCITY_M_S] * 3)
+    from scipy.integrate import solve_ivp  # here: scipy.integrate takes 0.15 s to import
+
     # solve_ivp wants strictly increasing sample times: integrate through the distinct ones.
     distinct_times, index = np.unique(times_s, return_inverse=True)
     solution = solve_ivp(

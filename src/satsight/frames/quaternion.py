@@ -12,7 +12,6 @@ Arrays carry components on the last axis: a single quaternion is shape (4,), a b
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from satsight.errors import SatsightError
 
@@ -110,6 +109,8 @@ def quaternion_from_matrix(R_a_from_b: np.ndarray) -> np.ndarray:
     if not np.allclose(np.swapaxes(R, -1, -2) @ R, eye, atol=1e-6) or np.any(np.linalg.det(R) < 0):
         raise SatsightError("matrix is not a proper rotation (R^T R != I or det(R) != +1)")
     flat = R.reshape(-1, 3, 3)
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial takes 0.19 s to import
+
     q = Rotation.from_matrix(flat).as_quat(scalar_first=True)
     return canonical_quaternion(q.reshape((*R.shape[:-2], 4)))
 

@@ -37,9 +37,8 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import scipy.constants as const
 
-from satsight.constants import AU_M, DEFAULT_BAND_NM
+from satsight.constants import AU_M, DEFAULT_BAND_NM, STEFAN_BOLTZMANN_W_M2_K4
 from satsight.errors import SatsightError
 from satsight.lighting.blackbody import planck_exitance_w_m2_per_m
 
@@ -200,7 +199,8 @@ def _band_irradiance_1au_w_m2(
             raise SatsightError(f"temperature_k must be finite and > 0 K, got {temperature_k}")
         if not (math.isfinite(total_w_m2) and total_w_m2 >= 0.0):
             raise SatsightError(f"total_w_m2 must be finite and >= 0 W m^-2, got {total_w_m2}")
-        fraction = _planck_band_w_m2(lo_nm * _NM, hi_nm * _NM, t) / (const.Stefan_Boltzmann * t**4)
+        band = _planck_band_w_m2(lo_nm * _NM, hi_nm * _NM, t)
+        fraction = band / (STEFAN_BOLTZMANN_W_M2_K4 * t**4)
         return float(total_w_m2) * fraction
     raise SatsightError(f"unknown spectrum '{spectrum}'; choose one of {', '.join(SPECTRA)}")
 

@@ -16,13 +16,15 @@ Astronomical Almanac, 3rd ed., 2013, Sec. 7.2.4).
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from satsight.constants import SPEED_OF_LIGHT_M_S
 from satsight.errors import SatsightError
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 """One arcsecond in radians."""
@@ -176,6 +178,8 @@ def cross_match(
     separation_rad), each (P,). ``tree_b``: a ``cKDTree`` of ``u_b`` already built (saves
     ~0.2 s for the 480 000 Gaia sources when several matches share it).
     """
+    from scipy.spatial import cKDTree  # here: scipy.spatial takes 0.15 s to import
+
     tree = cKDTree(u_b) if tree_b is None else tree_b
     chord = 2.0 * math.sin(0.5 * radius_rad)
     dist, idx = tree.query(u_a, k=k, distance_upper_bound=chord)

@@ -92,7 +92,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from satsight.errors import SatsightError
 from satsight.sensor.star_astrometry import (
@@ -352,6 +351,8 @@ def _full_catalog() -> StarCatalog:
 
     # Positional pairs, fill-ins excluded on both sides.
     gaia_real = np.flatnonzero(gaia["source_id"] > 0)
+    from scipy.spatial import cKDTree  # here: scipy.spatial takes 0.15 s to import
+
     tree = cKDTree(u_gaia[gaia_real])
     hip_free = np.setdiff1d(np.arange(n_hip), fill_rows)
     ia, ib, _ = cross_match(

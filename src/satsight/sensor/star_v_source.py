@@ -41,10 +41,9 @@ up to ~1 mag too bright), ``gaia_g_only`` those with no colour (V = G).
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from satsight.sensor.star_photometry import (
     GV_COEFFS,
@@ -52,6 +51,9 @@ from satsight.sensor.star_photometry import (
     V_HP_FIT_RANGE_BV,
     _clipped_polyfit,
 )
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 V_SOURCE_NAMES = (
     "gaia_transform",

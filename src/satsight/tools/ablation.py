@@ -171,14 +171,14 @@ def run_ablation(
     the noise floor far above the model differences at affordable sample counts.
     """
     from satsight.frame_light import frame_light
-    from satsight.pipeline import build_target, frame_seed, planned_frames
+    from satsight.pipeline import frame_seed, planned_frames
 
     if samples_per_pixel < 1 or reference_samples_per_pixel < samples_per_pixel:
         raise SatsightError(
             "need 1 <= samples_per_pixel <= reference_samples_per_pixel, got "
             f"{samples_per_pixel} and {reference_samples_per_pixel}"
         )
-    mesh = build_target(scenario.target, scenario.sun.band_nm)
+    mesh = scenario.target.build(scenario.sun.band_nm)
     camera = ablation_camera(scenario.camera.build(), width_px)
     reference_scenario = scenario.model_copy(
         update={"render": scenario.render.model_copy(update={"sh_order": REFERENCE_SH_ORDER})}
