@@ -3,8 +3,10 @@ heavy is loaded.
 
 A frame's buffers grow with its pixel count: the renderer's radiance, depth, normal,
 part-id and mask images, the sensor chain's float64 copies (optics, photons, electrons,
-noise), the DN image, the encoded files, and up to 3 frames in flight at once (one
-rendering while earlier ones are written). Measured with ``benchmarks/frame_memory.py``
+noise), the DN image, the encoded files, and up to 2 frames in flight at once (one
+rendering while the one before is sensed and written; 3 when these figures were measured,
+so they now overestimate by about a frame's buffers, ~0.5 GB at 4096^2, which errs on the
+safe side). Measured with ``benchmarks/frame_memory.py``
 (peak resident set size of ``satsight generate``, 6 frames of the example scenario at
 1024^2, 2048^2 and 4096^2 px, 2-core CPU, ``llvm_ad_rgb``): about 0.7 GB fixed
 (interpreter, Mitsuba, Dr.Jit's kernels, the mesh) plus 164 bytes a pixel with the lean

@@ -168,6 +168,23 @@ class CameraRays:
         of the body id, 0 space, 1 Earth, 2 Moon; else empty) of the camera rays ``rays``
         of pixels ``pixel``."""
         mi, dr = self._mi, self._dr
+        depth, part_id, n_cam, background = self._label_values(frame, rays)
+        normals = dr.empty(mi.Float, 3 * dr.width(pixel))
+        dr.scatter(normals, n_cam, pixel)  # one packet write of the three components
+        return depth, part_id, normals, background
+
+    def labels_into(self, frame: FrameValues, rays: CameraRayHit, pixel, images: tuple) -> None:
+        """The labels of ``labels`` written into the whole frame's label images ``images``
+        (depth, part id, flat normals[, background]) at entries ``pixel``: one block of
+        pixels of a frame traced in blocks."""
+        dr = self._dr
+        depth, part_id, n_cam, background = self._label_values(frame, rays)
+        for image, value in zip(images, (depth, part_id, n_cam, *background), strict=True):
+            dr.scatter(image, value, pixel)
+
+    def _label_values(self, frame: FrameValues, rays: CameraRayHit) -> tuple:
+        """(depth, part id, normal in camera axes (Vector3f), background tuple) per ray."""
+        dr = self._dr
         hit = rays.hit
         background: tuple = ()
         if frame.bodies_in_view:
@@ -178,6 +195,4 @@ class CameraRays:
         depth = dr.select(hit, rays.distance_m * rays.direction_cam.z, 0.0)
         part_id = dr.select(hit, rays.surface.part + 1, 0)
         n_cam = dr.select(hit, frame.R_cam_from_body @ rays.shading.normal, 0.0)
-        normals = dr.empty(mi.Float, 3 * dr.width(pixel))
-        dr.scatter(normals, n_cam, pixel)  # one packet write of the three components
-        return depth, part_id, normals, background
+        return depth, part_id, n_cam, background

@@ -65,6 +65,11 @@ from satsight.scene.mesh import TargetMesh
 
 # Light paths traced per kernel launch when several passes share one launch.
 _LANES_PER_LAUNCH = 1 << 20
+# Pixels traced per launch when one pass fills more: a 4096 x 4112 frame in five blocks.
+# The kernels' per-ray arrays then hold a block, not the frame (the block's results go
+# straight into the frame's buffers), and a frame's memory peak is its buffers plus one
+# block's.
+_PIXELS_PER_BLOCK = 1 << 22
 
 
 class Renderer:
@@ -347,7 +352,7 @@ class Renderer:
         ``with_labels``, the label images (depth, part id, normals) of the pixel centres."""
         mi, dr = self._mi, self._dr
         s = self.settings
-        camera_rays, tracer = self._camera_rays, self._path_tracer
+        camera_rays = self._camera_rays
         idx = dr.arange(mi.UInt32, n_pix)
 
         # Passes are traced in launches of up to _LANES_PER_LAUNCH paths: one pass per launch
@@ -357,14 +362,15 @@ class Renderer:
         # With one pixel-centre pass and no transparency the pass's primary rays are the
         # label rays: labels and radiance then come from one trace.
         centre_labels = with_labels and s.passes == 1 and not self._transparent
-        # Paths that leave the pixel's primary ray are shaded only where it hits the
-        # target: a first kernel finds the hits, dr.compress lists them, the shading kernel
-        # runs on those lanes alone (a target covering 5 % of the frame costs 5 %).
-        compact = s.environment != "off" or s.sun == "sh" or s.bounces > 0
         # Radiance and normals are flat (H, W, 3) arrays that the kernels write in place
         # (packet scatters of the three channels): no reordering pass after them.
         radiance = dr.zeros(mi.Float, 3 * n_pix)
         labels: tuple = ()
+        if centre_labels:  # written block by block (``CameraRays.labels_into``)
+            labels = (dr.zeros(mi.Float, n_pix), dr.zeros(mi.UInt32, n_pix),
+                      dr.zeros(mi.Float, 3 * n_pix))  # fmt: skip
+            if frame.bodies_in_view:
+                labels += (dr.zeros(mi.UInt32, n_pix),)
         first = 0
         while first < s.passes:
             count = min(per_launch, s.passes - first)
@@ -373,44 +379,23 @@ class Renderer:
             # Each path adds its radiance to its own lane of ``lane_sum`` (no two paths of a
             # kernel share one, so no atomic operations); with several passes per launch the
             # lanes are pixel-major and each pixel's block is summed in a fixed order, so
-            # the same seed gives the same bytes.
+            # the same seed gives the same bytes. A pass of one path per pixel is traced in
+            # blocks of pixels (its lanes are the pixels: the same paths, the same bytes).
             if count == 1:
-                pixel, pass_index = idx, first_pass
-                lane_sum = radiance
+                for start in range(0, n_pix, _PIXELS_PER_BLOCK):
+                    block = dr.arange(mi.UInt32, start, min(n_pix, start + _PIXELS_PER_BLOCK))
+                    self._trace_lanes(frame, block, first_pass, block, radiance, labels)
+                    dr.eval(radiance, *labels)
             else:
                 lanes = dr.arange(mi.UInt32, n_pix * count)
                 pixel, pass_index = lanes // count, first_pass + lanes % count
                 lane_sum = dr.zeros(mi.Color3f, n_pix * count)
-            rays, path = camera_rays.pass_primary(
-                frame, pixel, pass_index, pixel if count == 1 else lanes
-            )
-            if frame.bodies_in_view:
-                # Rays that miss the target see the Earth or the Moon behind it.
-                sky, _ = self._body_light.radiance(
-                    frame.bodies, frame.camera_render_m, rays.direction_body, ~rays.hit
-                )
-                dr.scatter_add(lane_sum, sky, path.lane, ~rays.hit, mode=dr.ReduceMode.NoConflicts)
-            if centre_labels:
-                labels = camera_rays.labels(frame, rays, idx)
-            if compact:
-                hits = (rays.surface.face, rays.surface.u, rays.surface.v)
-                dr.eval(rays.hit, *hits, *labels)
-                selected = dr.compress(rays.hit)
-                if dr.width(selected) > 0:
-                    pixel = dr.gather(mi.UInt32, pixel, selected)
-                    lane = pixel
-                    if count > 1:
-                        pass_index = dr.gather(mi.UInt32, pass_index, selected)
-                        lane = dr.gather(mi.UInt32, lanes, selected)
-                    hits = tuple(dr.gather(type(v), v, selected) for v in hits)
-                    rays, path = camera_rays.pass_primary(frame, pixel, pass_index, lane, hits)
-                    tracer.trace(frame, rays, path, lane_sum)
-            else:
-                tracer.trace(frame, rays, path, lane_sum)
-            if count > 1:
+                self._trace_lanes(frame, pixel, pass_index, lanes, lane_sum, ())
                 dr.scatter_add(radiance, dr.block_sum(lane_sum, count), idx)
-            dr.eval(radiance, *labels)
+                dr.eval(radiance)
             first += count
+        if centre_labels:  # (depth, part id, normals, (background,) or ())
+            labels = (*labels[:3], tuple(labels[3:]))
         if with_labels and not centre_labels:
             # Labels: the ray through each pixel centre; transparent parts count as solid
             # above the label opacity threshold.
@@ -422,6 +407,42 @@ class Renderer:
         if s.passes > 1:
             radiance = radiance * (1.0 / s.passes)
         return radiance, labels
+
+    def _trace_lanes(self, frame: FrameValues, pixel, pass_index, lane, lane_sum, labels):
+        """Trace the paths of pixels ``pixel`` in passes ``pass_index`` and add their radiance
+        to entries ``lane`` of ``lane_sum``; with ``labels`` (the frame's label images),
+        write the pixels' labels into them."""
+        mi, dr = self._mi, self._dr
+        s = self.settings
+        camera_rays, tracer = self._camera_rays, self._path_tracer
+        rays, path = camera_rays.pass_primary(frame, pixel, pass_index, lane)
+        if frame.bodies_in_view:
+            # Rays that miss the target see the Earth or the Moon behind it.
+            sky, _ = self._body_light.radiance(
+                frame.bodies, frame.camera_render_m, rays.direction_body, ~rays.hit
+            )
+            dr.scatter_add(lane_sum, sky, path.lane, ~rays.hit, mode=dr.ReduceMode.NoConflicts)
+        if labels:
+            camera_rays.labels_into(frame, rays, pixel, labels)
+        # Paths that leave the pixel's primary ray are shaded only where it hits the
+        # target: a first kernel finds the hits, dr.compress lists them, the shading kernel
+        # runs on those lanes alone (a target covering 5 % of the frame costs 5 %).
+        if not (s.environment != "off" or s.sun == "sh" or s.bounces > 0):
+            tracer.trace(frame, rays, path, lane_sum)
+            return
+        hits = (rays.surface.face, rays.surface.u, rays.surface.v)
+        dr.eval(rays.hit, *hits, *labels)
+        selected = dr.compress(rays.hit)
+        if dr.width(selected) == 0:
+            return
+        same = lane is pixel  # one pass: a path's lane is its pixel
+        pixel = dr.gather(mi.UInt32, pixel, selected)
+        if dr.width(pass_index) > 1:
+            pass_index = dr.gather(mi.UInt32, pass_index, selected)
+        lane = pixel if same else dr.gather(mi.UInt32, lane, selected)
+        hits = tuple(dr.gather(type(v), v, selected) for v in hits)
+        rays, path = camera_rays.pass_primary(frame, pixel, pass_index, lane, hits)
+        tracer.trace(frame, rays, path, lane_sum)
 
     def _pack_uint16_pairs(self, values):
         """UInt32 values < 2^16, two per UInt32 in memory order, so that numpy reads the
