@@ -20,6 +20,10 @@ def pytest_configure(config) -> None:
     against 0.46 ms on one, with the suite running beside it). Results do not depend on it:
     the one fit whose bits would is pinned to one thread in the code."""
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    # ``--workers N`` starts its Dask workers even on this small machine, where a run would
+    # otherwise render in one process (satsight.run.distributed.one_process_instead): the
+    # tests of the distributed path need them; test_generation.py tests the fallback.
+    os.environ["SATSIGHT_LOCAL_WORKERS"] = "always"
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=1, user_api="blas")

@@ -328,6 +328,36 @@ def test_dask_workers_give_the_same_bytes(tmp_path: Path, scenario_file: Path, r
     assert file_hashes(out) == reference_hashes
 
 
+def test_workers_on_a_small_machine_render_in_one_process(
+    tmp_path: Path, scenario_file: Path, reference_hashes, monkeypatch
+) -> None:
+    """``--workers 2`` where one process keeps the cores busy (fewer than 2 x 2 cores, as
+    here): a line saying why, no Dask cluster, the same bytes; with 4 cores or more the
+    workers start (``one_process_instead``), and SATSIGHT_LOCAL_WORKERS=always starts them
+    anyway."""
+    from satsight.run import distributed
+
+    monkeypatch.delenv("SATSIGHT_LOCAL_WORKERS", raising=False)
+    assert distributed.one_process_instead(2, cores=4) is None
+    assert distributed.one_process_instead(8, cores=16) is None
+    assert distributed.one_process_instead(1, cores=16) is not None  # one worker: never
+    why = distributed.one_process_instead(2, cores=2)
+    assert why.startswith("--workers 2: rendering in this process instead; on 2 cores")
+    started = []
+    monkeypatch.setattr(distributed, "dask_client", lambda *a, **k: started.append(a))
+    monkeypatch.setattr(distributed, "machine_cores", lambda: 2)
+    out = tmp_path / "one-process"
+    result = invoke_satsight(
+        "generate", str(scenario_file), "--out", str(out), "--workers", "2", cwd=tmp_path
+    )
+    assert result.returncode == 0, result.stderr
+    assert "--workers 2: rendering in this process instead" in result.stderr
+    assert not started
+    assert file_hashes(out) == reference_hashes
+    monkeypatch.setenv("SATSIGHT_LOCAL_WORKERS", "always")
+    assert distributed.one_process_instead(2, cores=2) is None
+
+
 def test_one_cpu_gives_the_same_bytes(tmp_path: Path, scenario_file: Path, reference_hashes):
     """Under ``taskset -c 0`` the sensor's noise runs on one thread, the renderer on one
     core: the bytes do not depend on the thread count."""

@@ -91,6 +91,13 @@ def generate_dataset(
         stack.enter_context(WriterLock(out_dir))  # one writer per folder, until the end
         stack.enter_context(write_errors_teach(out_dir))
         client = None
+        if workers is not None and scheduler is None:
+            from satsight.run.distributed import one_process_instead
+
+            why = one_process_instead(workers)
+            if why is not None:
+                log.warning("%s", why)
+                workers = None
         if workers is not None or scheduler is not None:
             from satsight.run.distributed import dask_client
 
