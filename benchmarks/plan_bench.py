@@ -16,7 +16,6 @@ import time
 
 from satsight.cli import example_scenario_path
 from satsight.config.scenario import load_scenario
-from satsight.pipeline import build_target
 from satsight.poses.plan import plan_track
 
 EXAMPLES = ("fly_around", "fly_by", "approach", "rssf_dataset")
@@ -42,7 +41,7 @@ def main() -> None:
     results = []
     for name in EXAMPLES:
         scenario = load_scenario(example_scenario_path().parent / f"{name}.yaml")
-        center = build_target(scenario.target).center_m
+        center = scenario.target.build().center_m
         sampler = scenario.sampler
         large = sampler.model_copy(
             update={"frame_count": args.frames, "step_s": None, "step_deg": None}

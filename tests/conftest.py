@@ -21,7 +21,7 @@ def pytest_configure(config) -> None:
     the one fit whose bits would is pinned to one thread in the code."""
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
     # ``--workers N`` starts its Dask workers even on this small machine, where a run would
-    # otherwise render in one process (satsight.run.distributed.one_process_instead): the
+    # otherwise render in one process (satsight.run.distributed.local_workers): the
     # tests of the distributed path need them; test_generation.py tests the fallback.
     os.environ["SATSIGHT_LOCAL_WORKERS"] = "always"
     from threadpoolctl import threadpool_limits

@@ -66,3 +66,22 @@ def test_the_field_of_view_keeps_a_sphere_that_touches_it() -> None:
     assert _shows([edge + 1.9, 0.0, z_body], sun, margin_px=10)
     assert not _shows([edge + 2.1, 0.0, z_body], sun, margin_px=10)
     assert not _shows([0.0, 0.0, -1000.0])  # behind the camera (and not sunward)
+
+
+def test_a_principal_point_off_the_image_keeps_the_view_the_image_sees() -> None:
+    """With the principal point far right of the image (a cropped sensor), the field of view
+    lies to the left of the boresight: a sphere on the image centre's ray is kept, one on
+    the boresight (outside the image) is left out."""
+    camera = PinholeCamera(
+        focal_length_m=0.1, pixel_pitch_m=1e-5, width_px=200, height_px=100, cx_px=400.0
+    )
+    view = FrameView(camera, CAM_FROM_BODY, np.array([0.0, 0.0, -1.0]))
+    z_cam = 1000.0  # far from the target, anti-sunward
+    centre_x = (99.5 - 400.0) / camera.focal_length_px * z_cam  # the image centre's ray
+
+    def shows(x_cam: float) -> bool:
+        pose = RigidTransform(np.eye(3), np.array([x_cam, 0.0, z_cam - 100.0]))
+        return view.shows(TARGET, ("o", OBJECT, pose))
+
+    assert shows(centre_x)
+    assert not shows(0.0)

@@ -89,11 +89,12 @@ class FrameView:
         x = (u - camera.cx_px) / camera.focal_length_px
         y = (v - camera.cy_px) / camera.focal_length_px
         corners = [np.array([x[i], y[j], 1.0]) for i, j in ((0, 0), (1, 0), (1, 1), (0, 1))]
+        inside = np.array([x.mean(), y.mean(), 1.0])  # the ray through the image centre
         for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
             normal = np.cross(a, b)
             normal /= np.linalg.norm(normal)
-            if normal[2] < 0:
-                normal = -normal  # inward: the boresight is inside
+            if normal @ inside < 0:
+                normal = -normal  # inward
             if center_cam @ normal < -radius:
                 return False
         return True

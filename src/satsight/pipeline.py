@@ -258,7 +258,9 @@ class FrameEngine:
             used = renderer
             if self._moving:  # the objects at this instant, those that can show
                 view = FrameView(camera, pose, light.sun_direction_body, sensor.margin_px)
-                moved = scenes[offset_s] = self.objects.at(plan_index, offset_s, target, view)
+                moved = self.objects.at(plan_index, offset_s, target, view)
+                if offset_s == 0.0:
+                    scenes[offset_s] = moved  # the frame's own, for its labels
                 used = Renderer(moved.mesh, renderer.settings, renderer.variant)
             image = used.render(camera, pose, light, seed, sensor.margin_px)
             if scene is None:

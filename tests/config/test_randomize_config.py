@@ -43,7 +43,7 @@ def test_texture_reseeding_follows_the_materials_group() -> None:
             r"sensor\.gain_scale must be \[low, high\]",
         ),
         ({"earth": {"cloud_patterns": 0}}, r"cloud_patterns must be a whole number within"),
-        ({"earth": {"cloud_fraction": [0.1, 0.5]}}, r"cloud_fraction must lie within \[0.2, 1\]"),
+        ({"earth": {"cloud_fraction": [0.2, 0.5]}}, r"cloud_fraction must lie within \[0.3, 1\]"),
         ({"sensor": {"exposure_factor": [0, 2]}}, r"must lie within|log-uniform"),
         ({"sun": {"direction_jitter_deg": 200}}, r"direction_jitter_deg must be within \[0, 180\]"),
         ({"pose": {"spin": True}}, r"spin"),

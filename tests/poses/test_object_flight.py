@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -167,3 +168,26 @@ def test_object_flights_need_an_orbit_plan_and_one_start() -> None:
     ]  # fmt: skip
     with pytest.raises(SatsightError, match="leave out offset_m"):
         parse_scenario(data, "test")
+
+
+def test_a_flight_beside_an_oem_target_reaches_the_files_last_instant() -> None:
+    """An OEM target whose last frame is the file's last instant: the object is placed
+    there too (nothing is looked up past the frames' times), and an RTN start 20 m along
+    track stays about 20 m away over the two hours (natural motion carried in RTN)."""
+    from satsight.config.scenario import load_scenario
+    from satsight.pipeline import planned_frames
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    data = load_scenario(examples / "oem_iss_hover.yaml").model_dump(mode="json", exclude_none=True)
+    data["sampler"]["duration_s"] = 7200.0  # the file covers 16:40-18:40
+    data["objects"] = [
+        {"name": "o", "debris": {"count": 2}, "flight": {"position_rtn_m": [0.0, 20.0, 0.0]}}
+    ]
+    scenario = parse_scenario(data, "test")
+    track, _ = planned_frames(scenario, scenario.target.build())
+    assert track.time_s[-1] == 7200.0
+    (poses,) = object_poses(
+        scenario.plan_request(), [scenario.objects[0].flight.build()], track.time_s
+    )
+    distance = np.linalg.norm(poses.t_body_m, axis=1)
+    assert np.all(np.abs(distance - 20.0) < 2.0)

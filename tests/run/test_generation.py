@@ -333,15 +333,18 @@ def test_workers_on_a_small_machine_render_in_one_process(
 ) -> None:
     """``--workers 2`` where one process keeps the cores busy (fewer than 2 x 2 cores, as
     here): a line saying why, no Dask cluster, the same bytes; with 4 cores or more the
-    workers start (``one_process_instead``), and SATSIGHT_LOCAL_WORKERS=always starts them
-    anyway."""
+    workers start, one per 2 cores (``local_workers``), and SATSIGHT_LOCAL_WORKERS=always
+    starts them anyway."""
     from satsight.run import distributed
 
     monkeypatch.delenv("SATSIGHT_LOCAL_WORKERS", raising=False)
-    assert distributed.one_process_instead(2, cores=4) is None
-    assert distributed.one_process_instead(8, cores=16) is None
-    assert distributed.one_process_instead(1, cores=16) is not None  # one worker: never
-    why = distributed.one_process_instead(2, cores=2)
+    assert distributed.local_workers(2, cores=4) == (2, None)
+    assert distributed.local_workers(8, cores=16) == (8, None)
+    count, why = distributed.local_workers(4, cores=4)  # 2 cores each: 2 of the 4
+    assert count == 2 and why.startswith("--workers 4: starting 2, 2 cores each on 4 cores")
+    assert distributed.local_workers(1, cores=16)[0] is None  # one worker: never worth it
+    count, why = distributed.local_workers(2, cores=2)
+    assert count is None
     assert why.startswith("--workers 2: rendering in this process instead; on 2 cores")
     started = []
     monkeypatch.setattr(distributed, "dask_client", lambda *a, **k: started.append(a))
@@ -355,7 +358,7 @@ def test_workers_on_a_small_machine_render_in_one_process(
     assert not started
     assert file_hashes(out) == reference_hashes
     monkeypatch.setenv("SATSIGHT_LOCAL_WORKERS", "always")
-    assert distributed.one_process_instead(2, cores=2) is None
+    assert distributed.local_workers(2, cores=2) == (2, None)
 
 
 def test_one_cpu_gives_the_same_bytes(tmp_path: Path, scenario_file: Path, reference_hashes):

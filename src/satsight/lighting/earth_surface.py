@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+from collections import OrderedDict
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -227,7 +228,10 @@ def build_albedo_map(model: EarthSurfaceModel) -> AlbedoMap:
     return AlbedoMap(rgb, description)
 
 
-_MEMORY: dict[str, AlbedoMap] = {}
+# Maps kept in memory, the most recently used last: a randomised cloud cover draws one map
+# per level and pattern (78 MB each), so only the last few stay.
+_MEMORY: OrderedDict[str, AlbedoMap] = OrderedDict()
+_MEMORY_MAPS = 4
 
 
 def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
@@ -238,6 +242,7 @@ def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
         json.dumps({**asdict(model), "v": _CACHE_VERSION}, sort_keys=True).encode()
     ).hexdigest()[:16]
     if key in _MEMORY:
+        _MEMORY.move_to_end(key)
         return _MEMORY[key]
     path = cache_dir() / f"earth_albedo_{key}.npz"
     albedo_map = None
@@ -258,6 +263,8 @@ def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
             albedo_map.description,
         )
     _MEMORY[key] = albedo_map
+    while len(_MEMORY) > _MEMORY_MAPS:
+        _MEMORY.popitem(last=False)
     return albedo_map
 
 

@@ -25,8 +25,11 @@ pose is carried by constant rates, as the camera's (``satsight.poses.pose_rates`
 
 with w_b the target's inertial angular velocity in body axes, w_o the object's in object
 axes, and u = R_body_from_gcrs (v_object - v_target) the relative velocity in body axes at
-the frame. The rates come from forward differences over ``RATE_STEP_S`` (exact for the
-constant rates of the inertial and spinning laws; the neglected relative acceleration,
+the frame (from the two states). The object's rate comes from a forward difference of its
+attitude law over ``RATE_STEP_S`` with the object moved along its velocity (exact for the
+constant rates of the inertial and spinning laws, O(h) of the orbital rate for the
+LVLH-fixed one); nothing is propagated past the frames' times. The neglected relative
+acceleration,
 ~n^2 |rho| = 1.2e-6 s^-2 x |rho| in low orbit, moves an object 100 m away by 6e-7 m in 0.1 s).
 """
 
@@ -131,11 +134,10 @@ def object_poses(
     times = np.asarray(times_s, dtype=np.float64).reshape(-1)
     if times.size and (not np.all(np.isfinite(times)) or times.min() < 0):
         raise SatsightError("object flights are computed at finite times >= 0 s")
-    n = times.size
-    # Every frame's time and the time a rate step later, propagated once in time order.
-    both = np.concatenate([times, times + RATE_STEP_S])
-    order = np.argsort(both, kind="stable")
-    sorted_times = both[order]
+    # The frames' times, propagated once in time order (no later instant: a TLE or OEM
+    # target may end at the last frame).
+    order = np.argsort(times, kind="stable")
+    sorted_times = times[order]
     back = np.empty_like(order)
     back[order] = np.arange(order.size)
     r_t, v_t = target_states(request, sorted_times)
@@ -149,12 +151,17 @@ def object_poses(
         R_gcrs_from_object = matrix_from_quaternion(
             attitude_quaternions(flight.attitude, r_o, v_o, sorted_times)
         )
+        # Object-axis rate, R(t + h) = R(t) Exp(w h), with the object moved along its
+        # velocity for the attitude a step later (as the plan's rates are taken).
+        R_later = matrix_from_quaternion(
+            attitude_quaternions(
+                flight.attitude, r_o + v_o * RATE_STEP_S, v_o, sorted_times + RATE_STEP_S
+            )
+        )
+        step = np.swapaxes(R_gcrs_from_object, -1, -2) @ R_later
+        omega = rotation_vector(quaternion_from_matrix(step)) / RATE_STEP_S
         R_body_from_object = (R_body_from_gcrs @ R_gcrs_from_object)[back]
         t_body = np.einsum("nij,nj->ni", R_body_from_gcrs, r_o - r_t)[back]
         u_body = np.einsum("nij,nj->ni", R_body_from_gcrs, v_o - v_t)[back]
-        R_go = R_gcrs_from_object[back]
-        # Object-axis rate: R(t + h) = R(t) Exp(w h).
-        step = np.swapaxes(R_go[:n], -1, -2) @ R_go[n:]
-        omega = rotation_vector(quaternion_from_matrix(step)) / RATE_STEP_S
-        poses.append(ObjectPoses(R_body_from_object[:n], t_body[:n], u_body[:n], omega))
+        poses.append(ObjectPoses(R_body_from_object, t_body, u_body, omega[back]))
     return poses

@@ -97,6 +97,8 @@ EARTH_BEHIND_CAP_FRACTION = 0.8
 
 #: About how far apart the drawn levels of the cloud cover are (``EarthRanges``).
 CLOUD_FRACTION_STEP = 0.05
+#: The lowest cloud cover a randomised map may draw (``EarthRanges``).
+CLOUD_FRACTION_MIN = 0.3
 
 
 def cloud_fraction_levels(interval: Interval) -> np.ndarray:
@@ -140,9 +142,11 @@ class EarthRanges:
                 f"{self.behind_probability:g}"
             )
         if self.cloud_fraction is not None:
-            # Below 0.2 no cloud albedo <= 1 brings the map's mean to the Bond albedo.
+            # The map's cloud albedo, (Bond albedo - clear share) / cover, must stay <= 1:
+            # at cover 0.2 it is 0.98-1.02 over the cloud patterns (seeds 0-7), at 0.3
+            # about 0.7, which leaves room for every pattern.
             fraction = check_interval(
-                "randomize.earth.cloud_fraction", self.cloud_fraction, 0.2, 1.0
+                "randomize.earth.cloud_fraction", self.cloud_fraction, CLOUD_FRACTION_MIN, 1.0
             )
             object.__setattr__(self, "cloud_fraction", fraction)
         if isinstance(self.cloud_patterns, bool) or not 1 <= self.cloud_patterns <= 64:

@@ -41,7 +41,7 @@ _QUEUED_PER_WORKER = 2
 #: example scenario, all outputs: peak RSS 0.64 GB at 128^2 px, 0.92 GB at 2048^2, 1.87 GB
 #: at 4096^2, i.e. 69-73 bytes a pixel).
 WORKER_BYTES_PER_PIXEL = 80.0
-#: Cores one process keeps busy (``one_process_instead``).
+#: Cores one process keeps busy (``local_workers``).
 CORES_PER_PROCESS = 2
 #: Times a frame lost with its worker (or with the scattered scenario) is submitted again.
 MAX_FRAME_ATTEMPTS = 4
@@ -123,29 +123,37 @@ def machine_cores() -> int:
     return cores or os.cpu_count() or 1
 
 
-def one_process_instead(requested: int, cores: int | None = None) -> str | None:
-    """Why ``--workers requested`` runs in this process instead (None: start the workers).
+def local_workers(requested: int, cores: int | None = None) -> tuple[int | None, str | None]:
+    """How many local workers ``--workers requested`` starts (None: the run renders in this
+    process instead), and why not as many as asked (None when it starts them all).
 
     One process already keeps ``CORES_PER_PROCESS`` cores busy: the renderer's threads on
     one frame while the sensor and the encoders take the one before. A local worker renders,
     senses and writes its frames one after another, so it needs as many to be worth its
     start-up (a process, its scenario, plan, star catalogue and compiled kernels): measured
     on 2 cores, 20 frames of the RSSF example at 1024 x 1024, one process 6.6 s, ``--workers
-    2`` 10.3 s (10.3 s too with one render thread each). So local workers start only where
-    each gets ``CORES_PER_PROCESS`` cores and there are at least two of them; the environment
-    variable ``SATSIGHT_LOCAL_WORKERS=always`` starts them anyway (to try a cluster's setup
-    on a small machine)."""
+    2`` 10.3 s (10.3 s too with one render thread each). So at most one worker per
+    ``CORES_PER_PROCESS`` cores starts, and none unless two can; the environment variable
+    ``SATSIGHT_LOCAL_WORKERS=always`` starts them all anyway (to try a cluster's setup on a
+    small machine; ``local_worker_cap`` still holds them to the cores and the memory)."""
     if os.environ.get("SATSIGHT_LOCAL_WORKERS", "").strip().lower() == "always":
-        return None
+        return requested, None
     if cores is None:
         cores = machine_cores()
-    if cores // CORES_PER_PROCESS >= 2 and requested >= 2:
-        return None
-    return (
-        f"--workers {requested}: rendering in this process instead; on {cores} "
-        f"core{'s' * (cores != 1)} one process keeps them busy and worker processes would "
-        "only add their start-up (SATSIGHT_LOCAL_WORKERS=always starts them anyway; "
-        "--scheduler renders on a cluster)"
+    count = min(requested, cores // CORES_PER_PROCESS)
+    if count >= max(requested, 2):
+        return requested, None
+    where = f"on {cores} core{'s' * (cores != 1)}"
+    if count < 2:
+        return None, (
+            f"--workers {requested}: rendering in this process instead; {where} one process "
+            "keeps them busy and worker processes would only add their start-up "
+            "(SATSIGHT_LOCAL_WORKERS=always starts them anyway; --scheduler renders on a "
+            "cluster)"
+        )
+    return count, (
+        f"--workers {requested}: starting {count}, {CORES_PER_PROCESS} cores each {where} "
+        "(SATSIGHT_LOCAL_WORKERS=always starts them all)"
     )
 
 

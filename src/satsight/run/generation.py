@@ -92,12 +92,11 @@ def generate_dataset(
         stack.enter_context(write_errors_teach(out_dir))
         client = None
         if workers is not None and scheduler is None:
-            from satsight.run.distributed import one_process_instead
+            from satsight.run.distributed import local_workers
 
-            why = one_process_instead(workers)
+            workers, why = local_workers(workers)
             if why is not None:
                 log.warning("%s", why)
-                workers = None
         if workers is not None or scheduler is not None:
             from satsight.run.distributed import dask_client
 
