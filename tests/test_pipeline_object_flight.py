@@ -196,3 +196,27 @@ def test_an_object_far_out_of_view_changes_no_pixel(drifting, tmp_path) -> None:
         assert np.array_equal(frame.image.radiance_w_m2_sr, plain.radiance_w_m2_sr)
         assert np.array_equal(frame.image.depth_m, plain.depth_m)
         assert np.array_equal(frame.image.part_id, plain.part_id)
+
+
+def test_a_fast_plate_beside_a_still_target_asks_for_time_samples(llvm_variant, tmp_path) -> None:
+    """``motion_blur: auto`` measures the flying objects in view too: the target hovers
+    still, the plate crosses at 20 m/s, so the frame is blurred with the samples its corners'
+    path asks for (path = |v| T / range x f / pitch, 0.5 px apart)."""
+    speed_m_s, exposure_s = 20.0, 0.2
+    camera = {**BASE["camera"], "exposure": {"mode": "fixed", "time_s": exposure_s}}
+    render = {**BASE["render"], "motion_blur": "auto"}
+    scenario = _scenario(
+        tmp_path, [0.0, 0.0, speed_m_s], camera=camera, render=render,
+        sampler={"kind": "sspt", "frame_count": 1, "start_s": 0.0, "duration_s": 1.0},
+    )  # fmt: skip
+    engine = FrameEngine(scenario)
+    frame = engine.render(0)
+    plate_cam = (frame.cam_from_body @ frame.scene.target_from_object[0]).t_a_from_b_m
+    expected_px = speed_m_s * exposure_s / plate_cam[2] * FOCAL_M / PITCH_M
+    assert frame.motion is not None
+    assert frame.motion.path_px == pytest.approx(expected_px, rel=0.05)
+    assert frame.motion.sample_count == min(32, int(np.ceil(frame.motion.path_px / 0.5)))
+    # Without the plate the target alone does not move enough to be blurred.
+    still = FrameEngine(parse_scenario({**scenario.model_dump(mode="json", exclude_none=True),
+                                        "objects": []}, "test"))  # fmt: skip
+    assert still.render(0).motion is None

@@ -79,6 +79,10 @@ class FrameView:
             return True
         return self._in_view(self.cam_from_body.apply(center[None, :])[0], radius)
 
+    def sees(self, center_body_m: np.ndarray, radius_m: float) -> bool:
+        """Whether a sphere (centre in the target's body frame) meets the field of view."""
+        return self._in_view(self.cam_from_body.apply(center_body_m[None, :])[0], radius_m)
+
     def _in_view(self, center_cam: np.ndarray, radius: float) -> bool:
         """Whether a sphere meets the pyramid of the image widened by ``margin_px``."""
         if center_cam[2] < -radius:
@@ -149,19 +153,52 @@ class FrameScene:
         show in it (``FrameView``). Without flying objects the one fixed scene."""
         if not self._flying:
             return self.fixed
-        omega = None
-        if self._track.omega_body_rad_s is not None:
-            omega = self._track.omega_body_rad_s[plan_index]
-        elif offset_s != 0.0:
-            omega = np.zeros(3)
         placed = list(self._placed)
-        for k, poses in zip(self._flying, self._poses, strict=True):
+        for k in self._flying:
             name, mesh, _ = placed[k]
-            placed[k] = (name, mesh, poses.target_from_object(plan_index, offset_s, omega))
+            placed[k] = (name, mesh, self._pose(k, plan_index, offset_s))
         absent = frozenset()
         if view is not None:
             absent = frozenset(k for k in self._flying if not view.shows(self._target, placed[k]))
         return merge_scene(self._target if target is None else target, placed, absent)
+
+    def moving_corners(
+        self, plan_index: int, view: FrameView
+    ) -> Callable[[float], np.ndarray] | None:
+        """The box corners (8 per object, target body frame) of the flying objects in the
+        frame's field of view at its time, as a function of the offset from it (their motion
+        over an exposure); None when no flying object is in view."""
+        if not self._flying:
+            return None
+        scene_poses = {k: self._pose(k, plan_index, 0.0) for k in self._flying}
+        seen = []
+        for k in self._flying:
+            _, mesh, _ = self._placed[k]
+            center = scene_poses[k].apply(mesh.center_m[None, :])[0]
+            if view.sees(center, mesh.bounding_radius_m):
+                seen.append(k)
+        if not seen:
+            return None
+
+        def corners(offset_s: float) -> np.ndarray:
+            return np.concatenate(
+                [
+                    self._pose(k, plan_index, offset_s).apply(
+                        self._placed[k][1].box_keypoints_body_m[:8]
+                    )
+                    for k in seen
+                ]
+            )
+
+        return corners
+
+    def _pose(self, k: int, plan_index: int, offset_s: float) -> RigidTransform:
+        """Flying object ``k``'s target_from_object at plan frame ``plan_index`` + offset."""
+        omega = np.zeros(3)
+        if self._track.omega_body_rad_s is not None:
+            omega = self._track.omega_body_rad_s[plan_index]
+        poses = self._poses[self._flying.index(k)]
+        return poses.target_from_object(plan_index, offset_s, omega)
 
     def masks(
         self,

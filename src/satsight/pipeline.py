@@ -291,6 +291,12 @@ class FrameEngine:
         still's focal-plane irradiance when the auto exposure needed it (None otherwise)."""
         mode, rule = self.scenario.render.motion_blur, sensor.exposure
         corners = self.mesh.box_keypoints_body_m[:8]
+        if self._moving:  # flying objects in view move over the exposure too
+            view = FrameView(camera, self.track.cam_from_body(plan_index), np.zeros(3))
+            objects = self.objects.moving_corners(plan_index, view)
+            if objects is not None:
+                target = corners
+                corners = lambda tau: np.concatenate([target, objects(tau)])  # noqa: E731
         longest = rule.time_s if rule.mode == "fixed" else rule.max_time_s
         probe = None
         if mode is not False:

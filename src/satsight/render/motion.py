@@ -80,18 +80,23 @@ class ExposureMotion:
         }
 
 
+Corners = np.ndarray | Callable[[float], np.ndarray]
+
+
 def corner_paths_px(
     camera: PinholeCamera,
     track: PoseTrack,
     index: int,
-    corners_body_m: np.ndarray,
+    corners_body_m: Corners,
     offsets_s: np.ndarray,
 ) -> np.ndarray:
     """(K, M, 2) pixel positions of the points ``corners_body_m`` (M, 3) at the offsets
-    ``offsets_s`` (K,) s from frame ``index``'s time."""
-    corners = np.asarray(corners_body_m, dtype=np.float64).reshape(-1, 3)
+    ``offsets_s`` (K,) s from frame ``index``'s time; corners_body_m may also be a function
+    of the offset giving them (points that move in the body frame: flying objects)."""
     paths = []
     for tau in np.asarray(offsets_s, dtype=np.float64):
+        corners = corners_body_m(float(tau)) if callable(corners_body_m) else corners_body_m
+        corners = np.asarray(corners, dtype=np.float64).reshape(-1, 3)
         R, t = pose_at_offset(track, index, float(tau))
         paths.append(camera.project(corners @ R.T + t))
     return np.stack(paths)
@@ -101,7 +106,7 @@ def exposure_motion(
     camera: PinholeCamera,
     track: PoseTrack,
     index: int,
-    corners_body_m: np.ndarray,
+    corners_body_m: Corners,
     exposure_s: float,
     mode: str | bool,
 ) -> ExposureMotion:
