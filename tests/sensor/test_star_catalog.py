@@ -383,7 +383,7 @@ def test_bad_gaia_photometry_falls_back_to_hipparcos(catalog, hip, v_published):
 
 def test_v_source_codes_and_counts(catalog):
     prov = catalog.provenance
-    assert prov["v_source_names"] == sv.V_SOURCE_NAMES
+    assert prov["v_source_names"] == list(sv.V_SOURCE_NAMES)  # (JSON's lists)
     counts = np.bincount(catalog.v_source, minlength=len(sv.V_SOURCE_NAMES))
     assert catalog.v_source.dtype == np.int8 and counts.sum() == len(catalog)
     # Hipparcos-only stars are exactly the negative source ids; fallbacks are paired stars.
@@ -491,3 +491,30 @@ def _blended_v_near(catalog, hip: dict, use: np.ndarray) -> np.ndarray:
     near = tree.query_ball_point(u, 10 * ARCSEC_RAD)
     flux = 10 ** (-0.4 * catalog.v_mag)
     return np.array([-2.5 * np.log10(flux[n].sum()) if n else np.inf for n in near])
+
+
+def test_the_disk_cache_gives_back_the_built_catalogue(tmp_path, monkeypatch):
+    """A catalogue read back from the disk cache equals the one built from the files, column
+    by column and bit for bit, provenance included (as JSON); a damaged cache file is built
+    again and rewritten."""
+    import json
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    sc._full_catalog.cache_clear()
+    try:
+        built = sc._full_catalog()  # nothing cached yet: built, then written
+        (path,) = (tmp_path / "satsight").glob("star_catalog_*.npz")
+        sc._full_catalog.cache_clear()
+        read = sc._full_catalog()
+        for name in sc._COLUMNS:
+            a, b = getattr(built, name), getattr(read, name)
+            assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True), name
+            assert not b.flags.writeable
+        assert read.provenance == built.provenance == json.loads(json.dumps(built.provenance))
+        path.write_bytes(b"not a zip file")
+        sc._full_catalog.cache_clear()
+        again = sc._full_catalog()
+        assert np.array_equal(again.v_mag, built.v_mag)
+        assert path.stat().st_size > 1_000_000
+    finally:
+        sc._full_catalog.cache_clear()
