@@ -11,6 +11,7 @@ shaded flat and untextured, with the material's values.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -118,10 +119,15 @@ class TargetMesh:
         return self.part_textures[part_index] if self.part_textures else None
 
     # --- geometry ------------------------------------------------------------------------
-    @property
+    # The box and the bounding sphere are computed once per mesh (a frame asks for them
+    # several times: 2 s a frame at 4 M triangles when they were recomputed each time) and
+    # handed out read-only. The mesh is frozen, and its arrays are not changed in place.
+    @functools.cached_property
     def bounds_m(self) -> np.ndarray:
-        """Axis-aligned bounding box in the body frame, (2, 3): [min, max]."""
-        return np.stack([self.vertices_m.min(axis=0), self.vertices_m.max(axis=0)])
+        """Axis-aligned bounding box in the body frame, (2, 3): [min, max] (read-only)."""
+        bounds = np.stack([self.vertices_m.min(axis=0), self.vertices_m.max(axis=0)])
+        bounds.setflags(write=False)
+        return bounds
 
     @property
     def center_m(self) -> np.ndarray:
@@ -134,7 +140,7 @@ class TargetMesh:
         b = self.bounds_m
         return b[1] - b[0]
 
-    @property
+    @functools.cached_property
     def bounding_radius_m(self) -> float:
         """Radius of the sphere about ``center_m`` that holds every vertex."""
         return float(np.linalg.norm(self.vertices_m - self.center_m, axis=1).max())
