@@ -129,16 +129,25 @@ def test_a_flying_plate_is_drawn_where_it_is_and_moves_across_the_frames(driftin
     assert max(hidden) > 0  # it passes before the target
 
 
-def test_motion_blur_draws_a_fast_plate_at_its_time_samples(llvm_variant, tmp_path) -> None:
-    speed_m_s, exposure_s = 20.0, 0.2
-    camera = {**BASE["camera"], "exposure": {"mode": "fixed", "time_s": exposure_s}}
-    render = {**BASE["render"], "motion_blur": True}
+FAST_M_S, LONG_EXPOSURE_S = 20.0, 0.2
+
+
+def _fast_plate(folder, motion_blur):
+    """One frame of the plate crossing at FAST_M_S, exposed LONG_EXPOSURE_S: the scenario,
+    its engine and the rendered frame."""
+    camera = {**BASE["camera"], "exposure": {"mode": "fixed", "time_s": LONG_EXPOSURE_S}}
+    render = {**BASE["render"], "motion_blur": motion_blur}
     scenario = _scenario(
-        tmp_path, [0.0, 0.0, speed_m_s], camera=camera, render=render,
+        folder, [0.0, 0.0, FAST_M_S], camera=camera, render=render,
         sampler={"kind": "sspt", "frame_count": 1, "start_s": 0.0, "duration_s": 1.0},
     )  # fmt: skip
     engine = FrameEngine(scenario)
-    frame = engine.render(0)
+    return scenario, engine, engine.render(0)
+
+
+def test_motion_blur_draws_a_fast_plate_at_its_time_samples(llvm_variant, tmp_path) -> None:
+    speed_m_s = FAST_M_S
+    _, engine, frame = _fast_plate(tmp_path, True)
     record, arrays, _ = engine.finish(frame)
     offsets = frame.motion.offsets_s
     assert frame.motion.sample_count == len(offsets) >= 2
@@ -202,17 +211,9 @@ def test_a_fast_plate_beside_a_still_target_asks_for_time_samples(llvm_variant, 
     """``motion_blur: auto`` measures the flying objects in view too: the target hovers
     still, the plate crosses at 20 m/s, so the frame is blurred with the samples its corners'
     path asks for (path = |v| T / range x f / pitch, 0.5 px apart)."""
-    speed_m_s, exposure_s = 20.0, 0.2
-    camera = {**BASE["camera"], "exposure": {"mode": "fixed", "time_s": exposure_s}}
-    render = {**BASE["render"], "motion_blur": "auto"}
-    scenario = _scenario(
-        tmp_path, [0.0, 0.0, speed_m_s], camera=camera, render=render,
-        sampler={"kind": "sspt", "frame_count": 1, "start_s": 0.0, "duration_s": 1.0},
-    )  # fmt: skip
-    engine = FrameEngine(scenario)
-    frame = engine.render(0)
+    scenario, _, frame = _fast_plate(tmp_path, "auto")
     plate_cam = (frame.cam_from_body @ frame.scene.target_from_object[0]).t_a_from_b_m
-    expected_px = speed_m_s * exposure_s / plate_cam[2] * FOCAL_M / PITCH_M
+    expected_px = FAST_M_S * LONG_EXPOSURE_S / plate_cam[2] * FOCAL_M / PITCH_M
     assert frame.motion is not None
     assert frame.motion.path_px == pytest.approx(expected_px, rel=0.05)
     assert frame.motion.sample_count == min(32, int(np.ceil(frame.motion.path_px / 0.5)))
