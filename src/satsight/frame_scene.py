@@ -31,7 +31,7 @@ from satsight.scene.mesh import TargetMesh
 from satsight.scene.objects import SceneMesh, merge_scene, objects_only
 
 #: An object whose light on the target is below this fraction of the Sun's is left out of
-#: a frame it is not seen in (module docstring of ``FrameView``).
+#: a frame it is not seen in (``FrameView``'s docstring).
 NEGLIGIBLE_REFLECTED_FRACTION = 1e-4
 #: The Sun's angular radius (rad; 959.6" at 1 au): how fast a shadow's penumbra widens.
 SUN_ANGULAR_RADIUS_RAD = 4.652e-3
@@ -63,6 +63,8 @@ class FrameView:
     margin_px: int = 0
 
     def shows(self, target: TargetMesh, placed: tuple[str, TargetMesh, RigidTransform]) -> bool:
+        """Whether the object ``placed`` (name, mesh, target_from_object) beside ``target``
+        can show in the frame (the class docstring's rules)."""
         _, mesh, pose = placed
         radius = mesh.bounding_radius_m
         center = pose.apply(mesh.center_m[None, :])[0]
