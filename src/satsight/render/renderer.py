@@ -173,7 +173,8 @@ class Renderer:
         frame = self._frame_values(camera, cam_from_body, light, seed, margin_px)
 
         n_pix = width * height
-        radiance, labels = self._radiance_passes(frame, n_pix, with_labels=True)
+        box = None if frame.bodies_in_view else self._target_box_px(camera, cam_from_body)
+        radiance, labels = self._radiance_passes(frame, n_pix, with_labels=True, box=box)
         depth, part_id, normals, background = labels
         part_pairs = self._pack_uint16_pairs(part_id)
         dr.eval(radiance, depth, part_pairs, normals, *background)
@@ -346,10 +347,34 @@ class Renderer:
         dr.eval(value)
         return np.stack([value[k].numpy() for k in range(3)], axis=-1)
 
-    def _radiance_passes(self, frame: FrameValues, n_pix: int, with_labels: bool) -> tuple:
+    def _target_box_px(self, camera: PinholeCamera, cam_from_body: RigidTransform):
+        """(x0, y0, x1, y1, width): the image's pixels whose rays may meet the target (the
+        projected corners of its box, widened by a pixel for the passes' sub-pixel
+        positions), or None when that is the whole image or the box reaches behind the
+        camera. Every other pixel sees empty space: radiance and labels 0."""
+        corners = cam_from_body.apply(self.mesh.box_keypoints_body_m[:8])
+        if np.any(corners[:, 2] <= 0):
+            return None
+        uv = camera.project(corners)
+        width, height = camera.width_px, camera.height_px
+        x0 = max(0, int(np.floor(uv[:, 0].min())) - 1)
+        y0 = max(0, int(np.floor(uv[:, 1].min())) - 1)
+        x1 = min(width, int(np.ceil(uv[:, 0].max())) + 2)
+        y1 = min(height, int(np.ceil(uv[:, 1].max())) + 2)
+        if x1 <= x0 or y1 <= y0:
+            return (0, 0, 0, 0, width)
+        if (x1 - x0) * (y1 - y0) > 0.5 * width * height:
+            return None  # most of the frame: tracing it whole is as cheap
+        return (x0, y0, x1, y1, width)
+
+    def _radiance_passes(
+        self, frame: FrameValues, n_pix: int, with_labels: bool, box: tuple | None = None
+    ) -> tuple:
         """Radiance (flat Float, three values per pixel) of pixels 0..n_pix-1 (positions
         from ``frame.pixel_position_px``), averaged over the settings' passes, and, with
-        ``with_labels``, the label images (depth, part id, normals) of the pixel centres."""
+        ``with_labels``, the label images (depth, part id, normals) of the pixel centres.
+        box: (x0, y0, x1, y1, width), the only pixels of an image that passes of one path
+        per pixel trace (``_target_box_px``); the others keep radiance and labels 0."""
         mi, dr = self._mi, self._dr
         s = self.settings
         camera_rays = self._camera_rays
@@ -382,8 +407,14 @@ class Renderer:
             # the same seed gives the same bytes. A pass of one path per pixel is traced in
             # blocks of pixels (its lanes are the pixels: the same paths, the same bytes).
             if count == 1:
-                for start in range(0, n_pix, _PIXELS_PER_BLOCK):
-                    block = dr.arange(mi.UInt32, start, min(n_pix, start + _PIXELS_PER_BLOCK))
+                traced = n_pix
+                if box is not None:
+                    x0, y0, x1, y1, width = box
+                    traced = (x1 - x0) * (y1 - y0)
+                for start in range(0, traced, _PIXELS_PER_BLOCK):
+                    block = dr.arange(mi.UInt32, start, min(traced, start + _PIXELS_PER_BLOCK))
+                    if box is not None:  # the box's pixels, row by row
+                        block = (y0 + block // (x1 - x0)) * width + x0 + block % (x1 - x0)
                     self._trace_lanes(frame, block, first_pass, block, radiance, labels)
                     dr.eval(radiance, *labels)
             else:

@@ -1,0 +1,64 @@
+"""Tracing only the pixels of the target's projected box (``Renderer._target_box_px``) gives
+the frame traced whole, byte for byte: radiance, depth, part ids and normals, with one
+path per pixel and with four (sub-pixel positions), for a target in the middle of the
+image and one cut by its edge; a frame whose box is most of the image, or reaches behind
+the camera, is traced whole."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from satsight.camera.pinhole import PinholeCamera
+from satsight.frames.rigid import RigidTransform
+from satsight.lighting.light_field import LightField
+from satsight.poses.views import View
+from satsight.render.renderer import Renderer
+from satsight.render.settings import RenderSettings
+from satsight.scene.procedural import generate_satellite
+
+CAMERA = PinholeCamera(focal_length_m=0.05, pixel_pitch_m=15e-6, width_px=240, height_px=180)
+LIGHT = LightField.sun_only(np.array([0.3, -0.5, 0.8]) / math.sqrt(0.98), 1361.0)
+
+
+def _images(renderer: Renderer, pose: RigidTransform, box_off: bool, monkeypatch) -> list:
+    if box_off:
+        monkeypatch.setattr(renderer, "_target_box_px", lambda camera, pose: None)
+    image = renderer.render(CAMERA, pose, LIGHT, seed=7)
+    monkeypatch.undo()
+    return [image.radiance_w_m2_sr, image.depth_m, image.part_id, image.normals_cam]
+
+
+@pytest.mark.parametrize("samples_per_pixel", [1, 4])
+@pytest.mark.parametrize("shift_px", [0.0, 115.0])  # centred; cut by the image's right edge
+def test_the_box_gives_the_whole_frames_bytes(
+    llvm_variant, monkeypatch, samples_per_pixel, shift_px
+) -> None:
+    mesh = generate_satellite("two_wings", seed=1)
+    settings = RenderSettings(bounces=1, environment="off", samples_per_pixel=samples_per_pixel)
+    renderer = Renderer(mesh, settings)
+    pose = View(120.0, math.radians(30.0), math.radians(10.0)).cam_from_body(mesh.center_m)
+    # Moved across the image by shift_px at the target's distance.
+    shift_m = shift_px * CAMERA.pixel_pitch_m / CAMERA.focal_length_m * 120.0
+    pose = RigidTransform(pose.R_a_from_b, pose.t_a_from_b_m + np.array([shift_m, 0.0, 0.0]))
+    box = renderer._target_box_px(CAMERA, pose)
+    assert box is not None and (box[2] - box[0]) * (box[3] - box[1]) < 0.5 * 240 * 180
+    if shift_px:
+        assert box[2] == CAMERA.width_px  # clipped by the image's edge
+    whole = _images(renderer, pose, True, monkeypatch)
+    boxed = _images(renderer, pose, False, monkeypatch)
+    assert (whole[2] > 0).sum() > 200  # the target is there
+    for a, b in zip(whole, boxed, strict=True):
+        assert np.array_equal(a, b)
+
+
+def test_a_box_of_most_of_the_frame_or_behind_the_camera_is_no_box(llvm_variant) -> None:
+    mesh = generate_satellite("two_wings", seed=1)
+    renderer = Renderer(mesh, RenderSettings(bounces=0, environment="off"))
+    near = View(8.0, 0.0, 0.0).cam_from_body(mesh.center_m)  # fills the frame
+    assert renderer._target_box_px(CAMERA, near) is None
+    # The camera inside the box: corners behind it.
+    inside = RigidTransform(np.eye(3), -mesh.center_m)
+    assert renderer._target_box_px(CAMERA, inside) is None
