@@ -226,11 +226,13 @@ class FrameEngine:
         mode = self.camera_mode(plan_index)
         camera, sensor = self.modes[mode]
         seed = frame_seed(self.scenario.seed, plan_index)
-        variation, draws, renderer, scene = self.variation, None, self.renderer, self.scene
+        variation, draws, scene = self.variation, None, self.scene
+        # With flying objects each render builds its own renderer (below), else the kept one.
+        renderer = None if self._moving else self.renderer
         if variation is not None:
             draws = variation.draw(plan_index)
             sensor = variation.sensor(sensor, draws)
-            if not self._moving:
+            if renderer is not None:
                 renderer = variation.renderer(renderer, draws)
         target = self.mesh
         if self._moving and variation is not None:  # objects on their own flight
@@ -261,7 +263,8 @@ class FrameEngine:
                 moved = self.objects.at(plan_index, offset_s, target, view)
                 if offset_s == 0.0:
                     scenes[offset_s] = moved  # the frame's own, for its labels
-                used = Renderer(moved.mesh, renderer.settings, renderer.variant)
+                render_config = self.scenario.render
+                used = Renderer(moved.mesh, render_config.settings(), render_config.variant)
             image = used.render(camera, pose, light, seed, sensor.margin_px)
             if scene is None:
                 return image
