@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import io
+import struct
 from pathlib import Path
 
+import imagecodecs
 import numpy as np
 import pytest
+from PIL import Image
 
-from satsight.dataset.image_files import read_exr, read_png, write_exr, write_png
+from satsight.dataset.image_files import encode_png, read_exr, read_png, write_exr, write_png
 
 SHAPE = (37, 53)  # odd sizes catch row-stride mistakes
 
@@ -31,6 +35,42 @@ def test_png_round_trip_is_bit_exact(tmp_path: Path, rng, dtype, channels) -> No
     assert back.dtype == dtype
     assert back.shape == shape
     np.testing.assert_array_equal(back, image)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+@pytest.mark.parametrize("shape", [SHAPE, (*SHAPE, 3), (1, 1)], ids=["grey", "rgb", "one"])
+def test_noisy_png_is_read_back_by_libpng_and_pillow(rng, dtype, shape) -> None:
+    """The raw-DN encoder writes its own chunks around libdeflate's stream: libpng (which
+    checks every chunk's CRC and the zlib checksum) and Pillow read the same samples."""
+    info = np.iinfo(dtype)
+    image = rng.integers(0, info.max, size=shape, dtype=dtype, endpoint=True)
+    image.flat[0] = info.max
+    data = encode_png(image, noisy=True)
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    np.testing.assert_array_equal(imagecodecs.png_decode(data), image)
+    if not (dtype == np.uint16 and len(shape) == 3):  # Pillow has no 16-bit RGB mode
+        np.testing.assert_array_equal(np.asarray(Image.open(io.BytesIO(data))), image)
+    # A flipped bit in the image data is caught (deflate stream, zlib or chunk checksum).
+    broken = bytearray(data)
+    broken[data.index(b"IDAT") + 6] ^= 0x01
+    with pytest.raises(imagecodecs.PngError):
+        imagecodecs.png_decode(bytes(broken))
+
+
+def test_noisy_png_splits_its_data_into_idat_chunks_of_a_mebibyte(rng) -> None:
+    image = rng.integers(0, 65535, size=(600, 1000), dtype=np.uint16, endpoint=True)
+    data = encode_png(image, noisy=True)
+    kinds, sizes, at = [], [], 8
+    while at < len(data):
+        (length,) = struct.unpack(">I", data[at : at + 4])
+        kinds.append(data[at + 4 : at + 8])
+        sizes.append(length)
+        at += 12 + length
+    assert at == len(data)
+    assert kinds[0] == b"IHDR" and kinds[-1] == b"IEND"
+    idat = [size for kind, size in zip(kinds, sizes, strict=True) if kind == b"IDAT"]
+    assert len(idat) == 2 and idat[0] == 1 << 20  # 1.2 MB of noise: two chunks
+    np.testing.assert_array_equal(imagecodecs.png_decode(data), image)
 
 
 def test_png_accepts_non_contiguous_views(tmp_path: Path, rng) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import re
 import shutil
+import struct
 from pathlib import Path
 
 import imagecodecs
@@ -16,11 +17,16 @@ import OpenEXR
 # - level 1 is 2x faster than level 3 and its files are 0-8 % larger;
 # - mostly-empty images (masks, previews, part ids): the "sub" row filter with zlib's
 #   run-length strategy, 4x faster than libpng's adaptive filter at equal size;
-# - raw DN (read noise everywhere): no row filter, 1.7x faster than level 1 with the
-#   adaptive filter, and 7 % smaller, as filters only add entropy to noise.
+# - raw DN (read noise everywhere): no row filter, as filters only add entropy to noise,
+#   and the rows compressed by libdeflate at level 1 (``_noisy_png``): against libpng with
+#   zlib at level 1, 0.13 s against 0.26 s and 6.9 against 7.5 MB for a frame of space,
+#   0.31 s against 0.76 s and 27.2 against 27.6 MB for one filled by the Earth.
 PNG_ZLIB_LEVEL = 1
 _PNG_FILTER_NONE, _PNG_FILTER_SUB = 0x08, 0x10  # libpng's filter flags
 _ZLIB_RLE_STRATEGY = 3
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_IDAT_BYTES = 1 << 20  # image data split into chunks of at most 1 MiB
+_PNG_COLOUR_TYPE = {1: 0, 3: 2}  # channels -> PNG colour type (grey, RGB)
 
 
 def encode_png(image: np.ndarray, noisy: bool = False) -> bytes:
@@ -32,10 +38,39 @@ def encode_png(image: np.ndarray, noisy: bool = False) -> bytes:
     if image.dtype not in (np.uint8, np.uint16):
         raise TypeError(f"PNG holds uint8 or uint16 samples, not {image.dtype}")
     if noisy:
-        return imagecodecs.png_encode(image, level=PNG_ZLIB_LEVEL, filter=_PNG_FILTER_NONE)
+        return _noisy_png(image)
     return imagecodecs.png_encode(
         image, level=PNG_ZLIB_LEVEL, strategy=_ZLIB_RLE_STRATEGY, filter=_PNG_FILTER_SUB
     )
+
+
+def _noisy_png(image: np.ndarray) -> bytes:
+    """A PNG (the PNG specification, 3rd edition, W3C 2025) of unfiltered rows whose zlib
+    stream libdeflate writes: IHDR, the image data in IDAT chunks, IEND."""
+    height, width = image.shape[:2]
+    channels = 1 if image.ndim == 2 else image.shape[2]
+    if channels not in _PNG_COLOUR_TYPE:
+        raise ValueError(f"PNG images here are grey or RGB, not {channels} channels")
+    row_bytes = width * channels * image.itemsize
+    rows = np.empty((height, 1 + row_bytes), np.uint8)
+    rows[:, 0] = 0  # filter type 0 (none) for each row
+    # Samples are big-endian in PNG.
+    rows[:, 1:].view(image.dtype.newbyteorder(">")).reshape(image.shape)[...] = image
+    stream = imagecodecs.deflate_encode(rows, PNG_ZLIB_LEVEL)  # zlib format
+    header = struct.pack(
+        ">IIBBBBB", width, height, 8 * image.itemsize, _PNG_COLOUR_TYPE[channels], 0, 0, 0
+    )
+    parts = [_PNG_SIGNATURE, _png_chunk(b"IHDR", header)]
+    for start in range(0, max(1, len(stream)), _PNG_IDAT_BYTES):
+        parts.append(_png_chunk(b"IDAT", stream[start : start + _PNG_IDAT_BYTES]))
+    parts.append(_png_chunk(b"IEND", b""))
+    return b"".join(parts)
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    """A PNG chunk: length, type, data and the CRC-32 of type and data."""
+    crc = imagecodecs.deflate_crc32(data, imagecodecs.deflate_crc32(kind))
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
 
 
 def write_png(path: Path, image: np.ndarray, noisy: bool = False) -> None:
