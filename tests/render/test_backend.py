@@ -244,3 +244,30 @@ def test_render_threads_come_from_the_environment(llvm_variant, monkeypatch) -> 
         assert dr.thread_count() == 3  # unset: left as it is
     finally:
         dr.set_thread_count(before)
+
+
+def test_render_threads_leave_a_core_to_the_other_stages(llvm_variant, monkeypatch) -> None:
+    """Beside the sensor and file stages, the CPU backend renders on one thread fewer than
+    the cores (never none), and its count is put back after the block, error or not; the
+    CUDA variant and an explicit SATSIGHT_RENDER_THREADS leave it alone."""
+    import drjit as dr
+
+    before = dr.thread_count()
+    try:
+        dr.set_thread_count(5)
+        monkeypatch.delenv("SATSIGHT_RENDER_THREADS", raising=False)
+        for cores, inside in ((8, 7), (2, 1), (1, 1)):
+            monkeypatch.setattr(backend, "machine_cores", lambda cores=cores: cores)
+            with backend.render_threads_beside_other_work(CPU_VARIANT):
+                assert dr.thread_count() == inside
+            assert dr.thread_count() == 5
+        with pytest.raises(RuntimeError), backend.render_threads_beside_other_work(CPU_VARIANT):
+            raise RuntimeError("a frame failed")
+        assert dr.thread_count() == 5
+        with backend.render_threads_beside_other_work(GPU_VARIANT):
+            assert dr.thread_count() == 5
+        monkeypatch.setenv("SATSIGHT_RENDER_THREADS", "3")
+        with backend.render_threads_beside_other_work(CPU_VARIANT):
+            assert dr.thread_count() == 5
+    finally:
+        dr.set_thread_count(before)

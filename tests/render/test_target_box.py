@@ -1,8 +1,9 @@
 """Tracing only the pixels of the target's projected box (``Renderer._target_box_px``) gives
 the frame traced whole, byte for byte: radiance, depth, part ids and normals, with one
 path per pixel and with four (sub-pixel positions), for a target in the middle of the
-image and one cut by its edge; a frame whose box is most of the image, or reaches behind
-the camera, is traced whole."""
+image and one cut by its edge, and with the Earth behind the target (its pixels outside
+the box drawn along their pixel-centre rays, with their background label); a frame whose
+box is most of the image, or reaches behind the camera, is traced whole."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import pytest
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.light_field import LightField
+from satsight.lighting.scene_bodies import BACKGROUND_EARTH, earth_body
 from satsight.poses.views import View
 from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings
@@ -23,12 +25,15 @@ CAMERA = PinholeCamera(focal_length_m=0.05, pixel_pitch_m=15e-6, width_px=240, h
 LIGHT = LightField.sun_only(np.array([0.3, -0.5, 0.8]) / math.sqrt(0.98), 1361.0)
 
 
-def _images(renderer: Renderer, pose: RigidTransform, box_off: bool, monkeypatch) -> list:
+def _images(
+    renderer: Renderer, pose: RigidTransform, box_off: bool, monkeypatch, light=LIGHT
+) -> list:
     if box_off:
         monkeypatch.setattr(renderer, "_target_box_px", lambda camera, pose: None)
-    image = renderer.render(CAMERA, pose, LIGHT, seed=7)
+    image = renderer.render(CAMERA, pose, light, seed=7)
     monkeypatch.undo()
-    return [image.radiance_w_m2_sr, image.depth_m, image.part_id, image.normals_cam]
+    return [image.radiance_w_m2_sr, image.depth_m, image.part_id, image.normals_cam,
+            image.background_id]  # fmt: skip
 
 
 @pytest.mark.parametrize("samples_per_pixel", [1, 4])
@@ -50,6 +55,46 @@ def test_the_box_gives_the_whole_frames_bytes(
     whole = _images(renderer, pose, True, monkeypatch)
     boxed = _images(renderer, pose, False, monkeypatch)
     assert (whole[2] > 0).sum() > 200  # the target is there
+    for a, b in zip(whole, boxed, strict=True):
+        assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("samples_per_pixel", [1, 4])
+def test_the_box_with_the_earth_behind_gives_the_whole_frames_bytes(
+    llvm_variant, monkeypatch, samples_per_pixel
+) -> None:
+    """500 km above a sunlit Earth that fills the frame behind a small target: with one
+    pixel-centre path per pixel the box is traced and the Earth drawn outside it; with four
+    paths (sub-pixel positions) the frame is traced whole. The bytes are those of the
+    whole frame traced, background labels included."""
+    mesh = generate_satellite("two_wings", seed=1)
+    settings = RenderSettings(
+        bounces=1, environment="unshadowed", samples_per_pixel=samples_per_pixel
+    )
+    renderer = Renderer(mesh, settings)
+    pose = View(300.0, math.radians(30.0), math.radians(10.0)).cam_from_body(mesh.center_m)
+    camera_body = pose.inverse().t_a_from_b_m
+    down = (mesh.center_m - camera_body) / np.linalg.norm(mesh.center_m - camera_body)
+    centre_m = camera_body + 6_871e3 * down  # the camera 500 km above a sphere of 6 371 km
+    sun = -down + np.array([0.2, 0.1, 0.0]) - 0.2 * down[0] * down - 0.1 * down[1] * down
+    sun /= np.linalg.norm(sun)
+    earth = earth_body(centre_m, np.eye(3), 0.3, sun, 1361.0, shape="sphere")
+    light = LightField(sun, 1361.0, np.zeros((25, 3)), bodies=(earth,))
+    whole = _images(renderer, pose, True, monkeypatch, light)
+    traced = []
+    monkeypatch.setattr(
+        renderer, "_bodies_outside_box", lambda *a: traced.append(a[1]) or original(*a)
+    )
+    original = Renderer._bodies_outside_box.__get__(renderer)
+    boxed = _images(renderer, pose, False, monkeypatch, light)
+    assert len(traced) == (1 if samples_per_pixel == 1 else 0)
+    if traced:
+        x0, y0, x1, y1, _ = traced[0]
+        assert (x1 - x0) * (y1 - y0) < 0.2 * CAMERA.width_px * CAMERA.height_px
+    assert (whole[2] > 0).sum() > 200  # the target is there
+    background = whole[4]
+    assert (background == BACKGROUND_EARTH).sum() + (whole[2] > 0).sum() == background.size
+    assert whole[0][background == BACKGROUND_EARTH].min() > 0  # a lit Earth everywhere
     for a, b in zip(whole, boxed, strict=True):
         assert np.array_equal(a, b)
 

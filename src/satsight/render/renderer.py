@@ -173,7 +173,11 @@ class Renderer:
         frame = self._frame_values(camera, cam_from_body, light, seed, margin_px)
 
         n_pix = width * height
-        box = None if frame.bodies_in_view else self._target_box_px(camera, cam_from_body)
+        # Against empty space, or with one pixel-centre pass, only the target's box is
+        # traced (the Earth and the Moon outside it drawn along the pixel-centre rays).
+        box = None
+        if not frame.bodies_in_view or self.settings.passes == 1:
+            box = self._target_box_px(camera, cam_from_body)
         radiance, labels = self._radiance_passes(frame, n_pix, with_labels=True, box=box)
         depth, part_id, normals, background = labels
         part_pairs = self._pack_uint16_pairs(part_id)
@@ -417,6 +421,8 @@ class Renderer:
                         block = (y0 + block // (x1 - x0)) * width + x0 + block % (x1 - x0)
                     self._trace_lanes(frame, block, first_pass, block, radiance, labels)
                     dr.eval(radiance, *labels)
+                if box is not None and frame.bodies_in_view:
+                    self._bodies_outside_box(frame, box, n_pix, radiance, labels)
             else:
                 lanes = dr.arange(mi.UInt32, n_pix * count)
                 pixel, pass_index = lanes // count, first_pass + lanes % count
@@ -438,6 +444,41 @@ class Renderer:
         if s.passes > 1:
             radiance = radiance * (1.0 / s.passes)
         return radiance, labels
+
+    def _bodies_outside_box(self, frame: FrameValues, box: tuple, n_pix: int, radiance, labels):
+        """Add the Earth's and the Moon's radiance along the pixel-centre rays of the pixels
+        outside ``box`` (x0, y0, x1, y1, width), which cannot meet the target, to
+        ``radiance``, and write their background label (``labels``' fourth image, if any):
+        what tracing them would give, without the ray casts. The frame has one pass whose
+        rays go through the pixel centres (``passes == 1``)."""
+        mi, dr = self._mi, self._dr
+        x0, y0, x1, y1, width = box
+        box_width = x1 - x0
+        above = y0 * width  # the rows above the box, then beside it, then below it
+        beside = (y1 - y0) * (width - box_width)
+        outside = n_pix - (y1 - y0) * box_width
+        for start in range(0, outside, _PIXELS_PER_BLOCK):
+            index = dr.arange(mi.UInt32, start, min(outside, start + _PIXELS_PER_BLOCK))
+            side = index - above
+            row_part = max(1, width - box_width)
+            column = side % row_part
+            beside_pixel = (y0 + side // row_part) * width + dr.select(
+                column < x0, column, column + box_width
+            )
+            pixel = dr.select(
+                index < above,
+                index,
+                dr.select(index < above + beside, beside_pixel, index + (y1 - y0) * box_width),
+            )
+            px, py = frame.pixel_position_px(pixel)
+            _, d_body = self._camera_rays.directions(frame, px, py)
+            sky, body = self._body_light.radiance(
+                frame.bodies, frame.camera_render_m, d_body, mi.Bool(True)
+            )
+            dr.scatter_add(radiance, sky, pixel, mode=dr.ReduceMode.NoConflicts)
+            if len(labels) > 3:
+                dr.scatter(labels[3], body, pixel)
+            dr.eval(radiance, *labels)
 
     def _trace_lanes(self, frame: FrameValues, pixel, pass_index, lane, lane_sum, labels):
         """Trace the paths of pixels ``pixel`` in passes ``pass_index`` and add their radiance

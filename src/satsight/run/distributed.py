@@ -30,6 +30,7 @@ from satsight.config.scenario import parse_scenario
 from satsight.dataset.manifest import scenario_sha256
 from satsight.errors import SatsightError
 from satsight.frame_memory import FIXED_BYTES, memory_limit_bytes
+from satsight.render.backend import machine_cores
 from satsight.run.scheduler_address import CONNECT_TIMEOUT_S, probe_scheduler, scheduler_address
 
 log = logging.getLogger(__name__)
@@ -115,12 +116,6 @@ def local_worker_cap(
         f"core{'s' * (cores != 1)}{memory}); "
         f"starting {cap} worker processes"
     )
-
-
-def machine_cores() -> int:
-    """The cores this process may run on (its CPU affinity, else the machine's count)."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
-    return cores or os.cpu_count() or 1
 
 
 def local_workers(requested: int, cores: int | None = None) -> tuple[int | None, str | None]:

@@ -10,6 +10,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from satsight.pipeline import FrameEngine
+from satsight.render.backend import render_threads_beside_other_work
 from satsight.run.frame_stages import ENCODER_THREADS, sense_frame, write_frame
 from satsight.run.interrupt import StopFlag
 
@@ -30,8 +31,10 @@ def run_local(
 ) -> None:
     """Render the frames of ``todo`` in this process as a three-stage pipeline: frame k+2
     renders while frame k+1 goes through the sensor and frame k's files are encoded (on
-    ``ENCODER_THREADS`` threads), so that every core stays busy."""
+    ``ENCODER_THREADS`` threads), so that every core stays busy; the renderer keeps one core
+    fewer than the machine's for its threads (``render_threads_beside_other_work``)."""
     with (
+        render_threads_beside_other_work(engine.renderer.variant),
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-sensor") as sensor,
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-writer") as writer,
         ThreadPoolExecutor(ENCODER_THREADS, thread_name_prefix="satsight-encode") as encoders,
