@@ -145,11 +145,11 @@ def test_a_data_window_stores_only_its_pixels_and_reads_back_whole(tmp_path: Pat
     stays the image), so a window over a few pixels makes a file of a few hundred bytes."""
     import OpenEXR
 
-    from satsight.dataset.frame_files import surface_window
+    from satsight.dataset.frame_files import nonzero_window
 
     depth = np.zeros(SHAPE, dtype=np.float32)
     depth[5:9, 20:31] = rng.uniform(10.0, 20.0, size=(4, 11))
-    window = surface_window((depth > 0).astype(np.uint16))
+    window = nonzero_window(depth)
     assert window == (20, 5, 31, 9)
     write_exr(tmp_path / "d.exr", {"Z": depth}, window)
     write_exr(tmp_path / "full.exr", {"Z": depth})
@@ -162,11 +162,30 @@ def test_a_data_window_stores_only_its_pixels_and_reads_back_whole(tmp_path: Pat
     assert (tmp_path / "d.exr").stat().st_size < (tmp_path / "full.exr").stat().st_size
     # No surface at all: one stored pixel, still the whole image when read.
     empty = np.zeros(SHAPE, dtype=np.float32)
-    assert surface_window(empty.astype(np.uint16)) == (0, 0, 0, 0)
+    assert nonzero_window(empty) == (0, 0, 0, 0)
     write_exr(tmp_path / "e.exr", {"Z": empty}, (0, 0, 0, 0))
     np.testing.assert_array_equal(read_exr(tmp_path / "e.exr")["Z"], empty)
     with pytest.raises(ValueError, match="outside"):
         write_exr(tmp_path / "bad.exr", {"Z": depth}, (0, 0, SHAPE[1] + 1, 2))
+
+
+def test_the_nonzero_window_holds_every_pixel_with_a_value_in_any_channel() -> None:
+    """The radiance window: a value in one channel of one pixel counts, -0.0 too (its bits
+    are not 0, and the file keeps it), +0.0 does not."""
+    from satsight.dataset.frame_files import nonzero_window
+
+    rgb = np.zeros((*SHAPE, 3), dtype=np.float32)
+    assert nonzero_window(rgb) == (0, 0, 0, 0)
+    rgb[7, 40, 1] = 1e-30  # green only, tiny
+    assert nonzero_window(rgb) == (40, 7, 41, 8)
+    rgb[30, 3, 2] = -0.0
+    assert nonzero_window(rgb) == (3, 7, 41, 31)
+    rgb[30, 3, 2] = 0.0
+    assert nonzero_window(rgb) == (40, 7, 41, 8)
+    parts = np.zeros(SHAPE, dtype=np.uint16)
+    parts[0, SHAPE[1] - 1] = 1
+    parts[SHAPE[0] - 1, 0] = 2
+    assert nonzero_window(parts) == (0, 0, SHAPE[1], SHAPE[0])
 
 
 def test_half_float_channels_keep_unit_normals_to_half_precision(tmp_path: Path, rng) -> None:
