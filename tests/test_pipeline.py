@@ -82,6 +82,32 @@ def test_a_frame_renders_the_same_alone_twice_or_after_others(views_engine) -> N
     np.testing.assert_array_equal(alone, first)
 
 
+@pytest.mark.parametrize("samples_per_pixel", [1, 4])  # labels in the pass or apart
+def test_an_engine_whose_outputs_hold_no_normals_renders_none(
+    llvm_variant, samples_per_pixel
+) -> None:
+    """Without the normals output the engine renders no normals image (0.2 GB at 4K); the
+    frame's other images and its record are those of an engine that renders them, and
+    the Simulator's engine (normals=True) always has them."""
+    views = {**VIEWS, "render": {**VIEWS["render"], "samples_per_pixel": samples_per_pixel}}
+    lean = FrameEngine(parse_scenario({**views, "outputs": {"files": ["dn", "masks"]}}, "t"))
+    full = FrameEngine(parse_scenario(views, "test"))
+    asked = FrameEngine(parse_scenario({**views, "outputs": {"files": ["dn"]}}, "t"), True)
+    assert (lean.normals, full.normals, asked.normals) == (False, True, True)
+    for index in range(lean.frame_count):
+        without, with_normals = lean.render(index), full.render(index)
+        assert without.image.normals_cam is None
+        normals = with_normals.image.normals_cam
+        assert normals.shape == (SIZE_PX, SIZE_PX, 3)
+        seen = with_normals.image.part_id > 0
+        assert seen.any()
+        np.testing.assert_allclose(np.linalg.norm(normals[seen], axis=-1), 1.0, atol=1e-5)
+        for name in ("radiance_w_m2_sr", "depth_m", "part_id"):
+            assert np.array_equal(getattr(without.image, name), getattr(with_normals.image, name))
+        assert lean.finish(without)[0] == full.finish(with_normals)[0]
+        assert asked.render(index).image.normals_cam is not None
+
+
 def test_frames_left_out_do_not_change_the_seeds_of_the_others(llvm_variant) -> None:
     """With on_fail: skip the dataset's frame k is plan frame plan_indices[k]; it renders as
     that plan frame does when every frame is rendered (the seed follows the plan index)."""

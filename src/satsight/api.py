@@ -180,7 +180,7 @@ class Simulator:
         from satsight.pipeline import FrameEngine
 
         self.scenario: Scenario = load_scenario(scenario, overrides)
-        self._engine = FrameEngine(self.scenario)
+        self._engine = FrameEngine(self.scenario, normals=True)
         self._engine.load_star_catalogue()  # a missing catalogue fails here, not mid-loop
 
     @property

@@ -166,7 +166,9 @@ class FrameEngine:
     (one ``generate`` run, or one distributed worker) builds them once.
     """
 
-    def __init__(self, scenario: Scenario):
+    def __init__(self, scenario: Scenario, normals: bool | None = None):
+        """normals: render the normals image (``RadianceImage.normals_cam``); None: when
+        the outputs write it (a 4096 x 4112 frame's normals are 0.2 GB)."""
         camera = scenario.camera.build()
         check_frame_memory(camera.width_px, camera.height_px)  # before the mesh and renderer
         self.scenario = scenario
@@ -190,6 +192,9 @@ class FrameEngine:
             self.modes["far"] = (far.build(), build_sensor(scenario, far))
         self._renderer: Renderer | None = None
         self.variation = FrameVariation.of(scenario, self.mesh)
+        if normals is None:
+            normals = "normals_exr" in scenario.outputs.file_keys()
+        self.normals = normals
 
     def camera_mode(self, plan_index: int) -> str:
         """The camera mode of plan frame ``plan_index``: ``far`` when its range to the
@@ -265,7 +270,7 @@ class FrameEngine:
                     scenes[offset_s] = moved  # the frame's own, for its labels
                 render_config = self.scenario.render
                 used = Renderer(moved.mesh, render_config.settings(), render_config.variant)
-            image = used.render(camera, pose, light, seed, sensor.margin_px)
+            image = used.render(camera, pose, light, seed, sensor.margin_px, self.normals)
             if scene is None:
                 return image
             return replace(image, target_part_count=scene.target_part_count)

@@ -88,7 +88,7 @@ class FrameArrays:
                 image.radiance_w_m2_sr[cut],
                 image.depth_m[cut],
                 image.part_id[cut],
-                image.normals_cam[cut],
+                None if image.normals_cam is None else image.normals_cam[cut],
                 background_id=None if image.background_id is None else image.background_id[cut],
                 target_part_count=image.target_part_count,
             ),

@@ -175,12 +175,13 @@ class CameraRays:
 
     def labels_into(self, frame: FrameValues, rays: CameraRayHit, pixel, images: tuple) -> None:
         """The labels of ``labels`` written into the whole frame's label images ``images``
-        (depth, part id, flat normals[, background]) at entries ``pixel``: one block of
+        (depth, part id, flat normals or None[, background]) at entries ``pixel``: one block of
         pixels of a frame traced in blocks."""
         dr = self._dr
         depth, part_id, n_cam, background = self._label_values(frame, rays)
         for image, value in zip(images, (depth, part_id, n_cam, *background), strict=True):
-            dr.scatter(image, value, pixel)
+            if image is not None:  # (the normals when none are asked for)
+                dr.scatter(image, value, pixel)
 
     def _label_values(self, frame: FrameValues, rays: CameraRayHit) -> tuple:
         """(depth, part id, normal in camera axes (Vector3f), background tuple) per ray."""

@@ -152,6 +152,7 @@ class Renderer:
         light: LightField,
         seed: int = 0,
         margin_px: int = 0,
+        normals: bool = True,
     ) -> RadianceImage:
         """Render one frame.
 
@@ -160,7 +161,9 @@ class Renderer:
         (e.g. from ``SeedSequence([scenario_seed, frame_index])``), so a frame's noise does
         not depend on which frames were rendered before it. margin_px: also render the
         radiance of a ring this wide around the frame (``RadianceImage.margin_radiance_w_m2_sr``),
-        which the optics blur into the frame's edge pixels.
+        which the optics blur into the frame's edge pixels. normals: also the normals image
+        (False: ``normals_cam`` is None, and its 12 bytes a pixel are neither traced nor
+        held).
         """
         mi, dr = self._mi, self._dr
         if mi.variant() != self.variant:  # another renderer switched Mitsuba's variant
@@ -178,10 +181,14 @@ class Renderer:
         box = None
         if not frame.bodies_in_view or self.settings.passes == 1:
             box = self._target_box_px(camera, cam_from_body)
-        radiance, labels = self._radiance_passes(frame, n_pix, with_labels=True, box=box)
-        depth, part_id, normals, background = labels
+        radiance, labels = self._radiance_passes(
+            frame, n_pix, with_labels=True, box=box, normals=normals
+        )
+        depth, part_id, normals_image, background = labels
         part_pairs = self._pack_uint16_pairs(part_id)
-        dr.eval(radiance, depth, part_pairs, normals, *background)
+        dr.eval(radiance, depth, part_pairs, *background)
+        if normals_image is not None:
+            dr.eval(normals_image)
         margin_radiance = None
         if margin_px > 0:
             margin_radiance = self._render_margin(frame, width, height, margin_px)
@@ -206,7 +213,9 @@ class Renderer:
             radiance_w_m2_sr=radiance_w_m2_sr,
             depth_m=depth.numpy().reshape(height, width),
             part_id=part_pairs.numpy().view(np.uint16)[:n_pix].reshape(height, width),
-            normals_cam=normals.numpy().reshape(height, width, 3),
+            normals_cam=None
+            if normals_image is None
+            else normals_image.numpy().reshape(height, width, 3),
             margin_px=int(margin_px),
             margin_radiance_w_m2_sr=margin_radiance,
             background_id=background[0].numpy().astype(np.uint8).reshape(height, width)
@@ -372,13 +381,20 @@ class Renderer:
         return (x0, y0, x1, y1, width)
 
     def _radiance_passes(
-        self, frame: FrameValues, n_pix: int, with_labels: bool, box: tuple | None = None
+        self,
+        frame: FrameValues,
+        n_pix: int,
+        with_labels: bool,
+        box: tuple | None = None,
+        normals: bool = True,
     ) -> tuple:
         """Radiance (flat Float, three values per pixel) of pixels 0..n_pix-1 (positions
         from ``frame.pixel_position_px``), averaged over the settings' passes, and, with
         ``with_labels``, the label images (depth, part id, normals) of the pixel centres.
         box: (x0, y0, x1, y1, width), the only pixels of an image that passes of one path
-        per pixel trace (``_target_box_px``); the others keep radiance and labels 0."""
+        per pixel trace (``_target_box_px``); the others keep radiance and labels 0, but
+        for the Earth and the Moon behind the target (``_bodies_outside_box``). normals:
+        whether the labels hold the normals image (else None in its place)."""
         mi, dr = self._mi, self._dr
         s = self.settings
         camera_rays = self._camera_rays
@@ -397,7 +413,7 @@ class Renderer:
         labels: tuple = ()
         if centre_labels:  # written block by block (``CameraRays.labels_into``)
             labels = (dr.zeros(mi.Float, n_pix), dr.zeros(mi.UInt32, n_pix),
-                      dr.zeros(mi.Float, 3 * n_pix))  # fmt: skip
+                      dr.zeros(mi.Float, 3 * n_pix) if normals else None)  # fmt: skip
             if frame.bodies_in_view:
                 labels += (dr.zeros(mi.UInt32, n_pix),)
         first = 0
@@ -441,6 +457,8 @@ class Renderer:
                 frame, px, py, lambda layer: mi.Float(LABEL_OPACITY_THRESHOLD)
             )
             labels = camera_rays.labels(frame, rays, idx)
+            if not normals:  # never evaluated
+                labels = (labels[0], labels[1], None, labels[3])
         if s.passes > 1:
             radiance = radiance * (1.0 / s.passes)
         return radiance, labels
