@@ -13,6 +13,8 @@ import pytest
 
 from satsight.config.scenario import parse_scenario
 from satsight.constants import AU_M
+from satsight.dataset.frame_files import write_frame_files
+from satsight.dataset.image_files import read_png
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
 from satsight.pipeline import FrameEngine
@@ -84,7 +86,7 @@ def test_a_frame_renders_the_same_alone_twice_or_after_others(views_engine) -> N
 
 @pytest.mark.parametrize("samples_per_pixel", [1, 4])  # labels in the pass or apart
 def test_an_engine_whose_outputs_hold_no_normals_renders_none(
-    llvm_variant, samples_per_pixel
+    llvm_variant, samples_per_pixel, tmp_path
 ) -> None:
     """Without the normals output the engine renders no normals image (0.2 GB at 4K); the
     frame's other images and its record are those of an engine that renders them, and
@@ -104,8 +106,23 @@ def test_an_engine_whose_outputs_hold_no_normals_renders_none(
         np.testing.assert_allclose(np.linalg.norm(normals[seen], axis=-1), 1.0, atol=1e-5)
         for name in ("radiance_w_m2_sr", "depth_m", "part_id"):
             assert np.array_equal(getattr(without.image, name), getattr(with_normals.image, name))
-        assert lean.finish(without)[0] == full.finish(with_normals)[0]
+        lean_record, lean_arrays, _ = lean.finish(without)
+        full_record, full_arrays, _ = full.finish(with_normals)
+        assert lean_record == full_record
         assert asked.render(index).image.normals_cam is not None
+        # Frames waiting for their files keep the radiance only when a file holds it.
+        kept = full_arrays.for_files(full.file_keys())
+        assert kept.image.radiance_w_m2_sr is with_normals.image.radiance_w_m2_sr
+        dropped = lean_arrays.for_files(lean.file_keys())
+        assert dropped.image.radiance_w_m2_sr is None
+        assert dropped.image.margin_radiance_w_m2_sr is None
+        files, crop_files, _ = write_frame_files(
+            tmp_path, index, dropped, lean.file_keys(), (3, 5, 40, 30), True
+        )
+        assert set(files) == set(crop_files) == set(lean.file_keys())
+        np.testing.assert_array_equal(
+            read_png(tmp_path / crop_files["part_mask_png16"]), without.image.part_id[5:30, 3:40]
+        )
 
 
 def test_frames_left_out_do_not_change_the_seeds_of_the_others(llvm_variant) -> None:

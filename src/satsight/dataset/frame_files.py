@@ -24,7 +24,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -76,6 +76,14 @@ class FrameArrays:
     object_id: np.ndarray | None = None
     amodal_mask: np.ndarray | None = None
 
+    def for_files(self, keys: tuple[str, ...]) -> FrameArrays:
+        """The arrays without the radiance (0.2 GB a 4096 x 4112 frame) when no file of
+        ``keys`` is made of it, so that a frame waiting for its files holds only theirs."""
+        if "radiance_exr" in keys or self.image.radiance_w_m2_sr is None:
+            return self
+        image = replace(self.image, radiance_w_m2_sr=None, margin_radiance_w_m2_sr=None)
+        return replace(self, image=image)
+
     def window(self, box: tuple[int, int, int, int] | None) -> FrameArrays:
         """The same arrays cut to ``box`` = (x0, y0, x1, y1), exclusive ends (None: all)."""
         if box is None:
@@ -85,7 +93,7 @@ class FrameArrays:
         image, dn = self.image, self.dn_image
         return FrameArrays(
             RadianceImage(
-                image.radiance_w_m2_sr[cut],
+                None if image.radiance_w_m2_sr is None else image.radiance_w_m2_sr[cut],
                 image.depth_m[cut],
                 image.part_id[cut],
                 None if image.normals_cam is None else image.normals_cam[cut],

@@ -28,7 +28,8 @@ def margin_pixels_xy(width: int, height: int, margin_px: int) -> tuple[np.ndarra
 class RadianceImage:
     """One rendered frame, (H, W) images with pixel (0, 0) the top-left pixel centre.
 
-    radiance_w_m2_sr: (H, W, 3) float32 radiance towards the camera per colour channel.
+    radiance_w_m2_sr: (H, W, 3) float32 radiance towards the camera per colour channel
+    (None once dropped from a frame whose files do not hold it, ``FrameArrays.for_files``).
     depth_m: (H, W) float32 distance along the optical axis (+z), 0 where no surface.
     part_id: (H, W) uint16 part index + 1 of the visible surface, 0 for background.
     normals_cam: (H, W, 3) float32 unit surface normals in the camera frame, facing the
@@ -43,7 +44,7 @@ class RadianceImage:
     target's.
     """
 
-    radiance_w_m2_sr: np.ndarray
+    radiance_w_m2_sr: np.ndarray | None
     depth_m: np.ndarray
     part_id: np.ndarray
     normals_cam: np.ndarray | None

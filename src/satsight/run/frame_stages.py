@@ -34,6 +34,7 @@ def sense_frame(engine: FrameEngine, frame: RenderedFrame) -> SensedFrame:
     """Labels, optics and detector of a rendered frame."""
     t0 = time.perf_counter()
     record, arrays, box = engine.finish(frame)
+    arrays = arrays.for_files(engine.file_keys())
     return SensedFrame(record, arrays, box, time.perf_counter() - t0)
 
 

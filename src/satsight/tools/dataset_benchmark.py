@@ -55,18 +55,32 @@ def _scenario(size_px: tuple[int, int], outputs: str, frames: int) -> dict:
     return data
 
 
-def run_case(size_px: tuple[int, int], outputs: str, frames: int, out_dir: Path) -> dict:
-    """One case in this process: generate the dataset and time it (see module docstring)."""
+def run_case(
+    size_px: tuple[int, int],
+    outputs: str,
+    frames: int,
+    out_dir: Path,
+    workers: int | None = None,
+    cores: int | None = None,
+) -> dict:
+    """One case in this process: generate the dataset and time it (see module docstring).
+    workers: on a LocalCluster of that many workers (``--workers``). cores: first hold this
+    process (and the workers it starts) to that many of its cores."""
     import resource
 
     from satsight.config.scenario import parse_scenario
     from satsight.run.generation import generate_dataset
 
+    if cores is not None:
+        os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:cores])
     scenario = parse_scenario(_scenario(size_px, outputs, frames), "benchmark")
     commits: list[float] = []
     cpu0, t0 = os.times(), time.perf_counter()
     summary = generate_dataset(
-        scenario, out_dir, on_frame_done=lambda d, n: commits.append(time.perf_counter())
+        scenario,
+        out_dir,
+        workers=workers,
+        on_frame_done=lambda d, n: commits.append(time.perf_counter()),
     )
     wall = time.perf_counter() - t0
     cpu1 = os.times()
@@ -87,6 +101,45 @@ def run_case(size_px: tuple[int, int], outputs: str, frames: int, out_dir: Path)
         },
         "megabytes_per_frame": written / summary.rendered / 1e6,
         "variant": summary.variant,
+        "workers": workers,
+        "cores": len(os.sched_getaffinity(0)),
+    }
+
+
+def _child(arguments: list[str], env: dict | None = None) -> dict:
+    command = [sys.executable, "-m", "satsight.tools.dataset_benchmark", *arguments]
+    done = subprocess.run(command, capture_output=True, text=True, check=False, env=env)
+    if done.returncode != 0:
+        raise SatsightError(f"benchmark case failed:\n{done.stderr[-2000:]}")
+    return json.loads(done.stdout)
+
+
+def run_cluster_scaling(frames: int = 40, size_px: tuple[int, int] = (1024, 1024)) -> dict:
+    """A Dask LocalCluster of one worker against one worker per core, each worker rendering
+    on one thread (``SATSIGHT_RENDER_THREADS=1``); the one-worker run (its client, the
+    scheduler and the worker) is held to one core, the other has them all. The speed-up
+    is what more machines give. Steady rates (from the first to the last commit) leave the
+    cluster's start-up out."""
+    cores = len(os.sched_getaffinity(0))
+    env = {**os.environ, "SATSIGHT_LOCAL_WORKERS": "always", "SATSIGHT_RENDER_THREADS": "1"}
+    size = f"{size_px[0]}x{size_px[1]}"
+    results = {}
+    with tempfile.TemporaryDirectory(prefix="satsight-bench-") as tmp:
+        for workers in sorted({1, cores}):
+            out = str(Path(tmp) / f"w{workers}")
+            results[f"{workers}_workers"] = _child(
+                ["--case", size, "lean", str(frames), out, "--case-workers", str(workers),
+                 "--case-cores", str(workers)],
+                env,
+            )  # fmt: skip
+    one, many = results["1_workers"], results[f"{cores}_workers"]
+    return {
+        "benchmark": "cluster_scaling",
+        "scenario": "examples/rssf_dataset.yaml (first N frames), lean outputs",
+        "machine": {"cpu_count": cores, "platform": platform.platform()},
+        "cases": results,
+        "speedup_steady": one["steady_seconds_per_frame"] / many["steady_seconds_per_frame"],
+        "speedup_end_to_end": one["seconds_per_frame"] / many["seconds_per_frame"],
     }
 
 
@@ -132,14 +185,26 @@ def main(argv: list[str] | None = None) -> None:
         help="comma list of cases to run",
     )
     parser.add_argument(
+        "--cluster-scaling",
+        action="store_true",
+        help="instead: a LocalCluster of 1 worker on 1 core against 1 worker per core",
+    )
+    parser.add_argument(
         "--case", nargs=4, metavar=("SIZE", "OUTPUTS", "FRAMES", "OUT"), help=argparse.SUPPRESS
     )
+    parser.add_argument("--case-workers", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--case-cores", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     try:
         if args.case:
             size, outputs, frames, out = args.case
             width, height = (int(v) for v in size.split("x"))
-            result = run_case((width, height), outputs, int(frames), Path(out))
+            result = run_case(
+                (width, height), outputs, int(frames), Path(out), args.case_workers,
+                args.case_cores,
+            )  # fmt: skip
+        elif args.cluster_scaling:
+            result = run_cluster_scaling(args.frames)
         else:
             chosen = args.cases.split(",")
             unknown = set(chosen) - {name for name, _, _ in DEFAULT_CASES}
