@@ -192,7 +192,7 @@ class CameraRays:
             _, body = self._body_light.radiance(
                 frame.bodies, frame.camera_render_m, rays.direction_body, ~hit
             )
-            background = (dr.select(hit, 0, body),)
+            background = (self._mi.UInt8(dr.select(hit, 0, body)),)  # one byte a pixel
         depth = dr.select(hit, rays.distance_m * rays.direction_cam.z, 0.0)
         part_id = dr.select(hit, rays.surface.part + 1, 0)
         n_cam = dr.select(hit, frame.R_cam_from_body @ rays.shading.normal, 0.0)

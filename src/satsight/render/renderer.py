@@ -218,9 +218,7 @@ class Renderer:
             else normals_image.numpy().reshape(height, width, 3),
             margin_px=int(margin_px),
             margin_radiance_w_m2_sr=margin_radiance,
-            background_id=background[0].numpy().astype(np.uint8).reshape(height, width)
-            if background
-            else None,
+            background_id=background[0].numpy().reshape(height, width) if background else None,
             footprint=None if grid is None else grid.label(),
         )
 
@@ -415,7 +413,7 @@ class Renderer:
             labels = (dr.zeros(mi.Float, n_pix), dr.zeros(mi.UInt32, n_pix),
                       dr.zeros(mi.Float, 3 * n_pix) if normals else None)  # fmt: skip
             if frame.bodies_in_view:
-                labels += (dr.zeros(mi.UInt32, n_pix),)
+                labels += (dr.zeros(mi.UInt8, n_pix),)
         first = 0
         while first < s.passes:
             count = min(per_launch, s.passes - first)
@@ -495,7 +493,7 @@ class Renderer:
             )
             dr.scatter_add(radiance, sky, pixel, mode=dr.ReduceMode.NoConflicts)
             if len(labels) > 3:
-                dr.scatter(labels[3], body, pixel)
+                dr.scatter(labels[3], mi.UInt8(body), pixel)
             dr.eval(radiance, *labels)
 
     def _trace_lanes(self, frame: FrameValues, pixel, pass_index, lane, lane_sum, labels):
