@@ -60,8 +60,12 @@ def _worker_engine(scenario_json: dict):
         _ENGINES.clear()  # one scenario at a time per process
         _ENGINES[key] = FrameEngine(parse_scenario(scenario_json, "scenario"))
     if not _ENCODERS:
-        from satsight.run.frame_stages import ENCODER_THREADS
+        from threadpoolctl import threadpool_limits
 
+        from satsight.run.frame_stages import ENCODER_THREADS
+        from satsight.run.local import BLAS_THREADS
+
+        threadpool_limits(limits=BLAS_THREADS, user_api="blas")  # for the worker's life
         _ENCODERS.append(ThreadPoolExecutor(ENCODER_THREADS))
     return _ENGINES[key]
 
