@@ -1,4 +1,5 @@
-"""The outputs block: which preview stretch it chooses, and the values it refuses."""
+"""The outputs block: which preview stretch and EXR compression it chooses, and the values
+it refuses."""
 
 from __future__ import annotations
 
@@ -18,7 +19,15 @@ def test_outputs_choose_the_stretch() -> None:
     assert OutputsConfig(preview_stretch="gamma").build_preview().name == "gamma"
 
 
-@pytest.mark.parametrize("bad", [{"preview_stretch": "log"}, {"preview_softening_dn": 0}])
+def test_outputs_choose_the_exr_compression() -> None:
+    assert OutputsConfig().exr_compression == "rle"
+    assert OutputsConfig(exr_compression="zstd").exr_compression == "zstd"
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"preview_stretch": "log"}, {"preview_softening_dn": 0}, {"exr_compression": "piz"}],
+)
 def test_outputs_refuse_an_unknown_stretch_or_softening(bad: dict) -> None:
     with pytest.raises(ValidationError, match=next(iter(bad))):
         OutputsConfig(**bad)

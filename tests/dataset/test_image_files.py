@@ -11,7 +11,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from satsight.dataset.image_files import encode_png, read_exr, read_png, write_exr, write_png
+from satsight.dataset.image_files import (
+    EXR_COMPRESSIONS,
+    encode_png,
+    read_exr,
+    read_png,
+    write_exr,
+    write_png,
+)
 
 SHAPE = (37, 53)  # odd sizes catch row-stride mistakes
 
@@ -141,6 +148,32 @@ def test_exr_holds_several_channel_groups(tmp_path: Path, rng) -> None:
     assert set(back) == {"RGB", "Z"}
     np.testing.assert_array_equal(back["RGB"].view(np.uint32), rgb.view(np.uint32))
     np.testing.assert_array_equal(back["Z"].view(np.uint32), z.view(np.uint32))
+
+
+@pytest.mark.parametrize("compression", sorted(EXR_COMPRESSIONS))
+def test_every_exr_compression_is_lossless(tmp_path: Path, rng, compression) -> None:
+    """float32 (zeros of both signs, subnormals, the largest value) and half channels, over
+    a data window, come back bit for bit, and the file's header names the compression."""
+    import OpenEXR
+
+    rgb = _float_image(rng, (*SHAPE, 3))
+    rgb.flat[-4] = 1e-42  # subnormal
+    normals = rng.uniform(-1.0, 1.0, size=SHAPE).astype(np.float32)
+    path = tmp_path / f"{compression}.exr"
+    window = (3, 2, SHAPE[1] - 1, SHAPE[0] - 4)
+    write_exr(path, {"RGB": rgb, "X": normals}, window, half=("X",), compression=compression)
+    back = read_exr(path)
+    x0, y0, x1, y1 = window
+    inside = np.zeros(SHAPE, dtype=bool)
+    inside[y0:y1, x0:x1] = True
+    expected = np.where(inside[..., None], rgb, np.float32(0.0))
+    np.testing.assert_array_equal(back["RGB"].view(np.uint32), expected.view(np.uint32))
+    halves = np.where(inside, normals.astype(np.float16).astype(np.float32), np.float32(0.0))
+    np.testing.assert_array_equal(back["X"], halves)
+    with OpenEXR.File(str(path), header_only=True) as exr:
+        assert exr.header()["compression"] == EXR_COMPRESSIONS[compression][0]
+    with pytest.raises(ValueError, match="unknown EXR compression"):
+        write_exr(tmp_path / "bad.exr", {"X": normals}, compression="piz")
 
 
 def test_a_data_window_stores_only_its_pixels_and_reads_back_whole(tmp_path: Path, rng) -> None:

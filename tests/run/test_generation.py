@@ -23,7 +23,7 @@ from cli_runner import invoke_satsight
 from dataset_files import file_hashes, write_scenario_yaml
 from figure_checks import figure_pixels
 from satsight.config.scenario import parse_scenario
-from satsight.dataset.image_files import read_exr, read_png
+from satsight.dataset.image_files import exr_channels, read_exr, read_png
 from satsight.dataset.journal import read_journal
 from satsight.dataset.merge import merge_shards
 from satsight.dataset.preview import PreviewStretch, dn_preview_uint8
@@ -458,6 +458,36 @@ def test_previews_take_the_scenarios_stretch_and_the_manifest_names_it(
                 reference_dn = reference / frame["files"]["dn_png16"]
                 assert reference_dn.read_bytes() == dataset.path(frame, "dn_png16").read_bytes()
     assert validate_dataset(gamma_out).ok
+
+
+def test_exr_files_take_the_scenarios_compression_with_the_same_values(
+    tmp_path: Path, reference: Path
+) -> None:
+    """outputs.exr_compression: Zstandard EXRs hold the same values, bit for bit, as the
+    default RLE ones (the PNGs are the same files); the header names it, the files' own
+    headers carry it, and validate accepts the dataset."""
+    import OpenEXR
+
+    out = tmp_path / "zstd"
+    generate_dataset(parse_scenario(scenario_dict(exr_compression="zstd")), out)
+    dataset, default = open_dataset(out), open_dataset(reference)
+    assert dataset.header["outputs"]["exr_compression"] == "zstd"
+    assert default.header["outputs"]["exr_compression"] == "rle"
+    for frame, reference_frame in zip(dataset.frames, default.frames, strict=True):
+        for key in ("radiance_exr", "depth_exr", "normals_exr"):
+            path = dataset.path(frame, key)
+            with OpenEXR.File(str(path), header_only=True) as exr:
+                assert exr.header()["compression"] == OpenEXR.ZSTD_COMPRESSION
+            ours, theirs = exr_channels(path), exr_channels(default.path(reference_frame, key))
+            assert ours.keys() == theirs.keys()
+            for name, values in ours.items():
+                np.testing.assert_array_equal(values.view(np.uint32), theirs[name].view(np.uint32))
+        for key in ("dn_png16", "part_mask_png16"):
+            assert (
+                dataset.path(frame, key).read_bytes()
+                == default.path(reference_frame, key).read_bytes()
+            )
+    assert validate_dataset(out).ok
 
 
 def test_frames_carry_the_targets_irradiance_and_v_magnitude(reference: Path) -> None:

@@ -179,7 +179,12 @@ def _exr_channels(key: str, arrays: FrameArrays) -> dict[str, np.ndarray]:
 
 
 def _write_file(
-    root: Path, relative: str, key: str, arrays: FrameArrays, preview: PreviewStretch
+    root: Path,
+    relative: str,
+    key: str,
+    arrays: FrameArrays,
+    preview: PreviewStretch,
+    exr_compression: str = "rle",
 ) -> dict:
     """Encode and write one file through a temporary name; its checksum."""
     path = root / relative
@@ -189,7 +194,7 @@ def _write_file(
         if key.endswith("_exr"):
             window = exr_window(key, arrays.image)
             half = HALF_EXR_CHANNELS.get(key, ())
-            write_exr(tmp, _exr_channels(key, arrays), window, half)
+            write_exr(tmp, _exr_channels(key, arrays), window, half, exr_compression)
             checksum = file_checksum(tmp)
         else:
             data = _png_bytes(key, arrays, preview)
@@ -217,6 +222,7 @@ def write_frame_files(
     full_frame: bool,
     submit: Callable[..., object] | Executor | None = None,
     preview: PreviewStretch | None = None,
+    exr_compression: str = "rle",
 ) -> tuple[dict, dict, dict]:
     """Write frame ``index``'s files; return (files, crop files, checksums by path).
 
@@ -224,6 +230,7 @@ def write_frame_files(
     for no crop. full_frame: whether to write the full frame's files. submit: an executor
     to encode the files in parallel (their encoders release the GIL), or None for serial.
     preview: the 8-bit previews' stretch (None: the default, ``PreviewStretch()``).
+    exr_compression: the EXR files' compression (``image_files.EXR_COMPRESSIONS``).
     With objects in the scene (``arrays.object_id``), the masks come with
     ``OBJECT_FILE_KEYS``.
     """
@@ -239,7 +246,8 @@ def write_frame_files(
 
     def run(job: tuple[str, str, bool]) -> dict:
         key, relative, is_crop = job
-        return _write_file(root, relative, key, cropped if is_crop else arrays, preview)
+        chosen = cropped if is_crop else arrays
+        return _write_file(root, relative, key, chosen, preview, exr_compression)
 
     if submit is None:
         results = [run(job) for job in jobs]

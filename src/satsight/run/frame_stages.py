@@ -55,6 +55,7 @@ def write_frame(
         outputs.crop is None or outputs.crop.full_frame,
         encoders,
         preview,
+        outputs.exr_compression,
     )
     record["files"] = files
     if "crop" in record:
