@@ -223,13 +223,13 @@ class FrameScene:
                 Renderer(objects_only(self.fixed), settings, variant),
             )
         alone_renderer, objects_renderer = self._label_renderers
-        alone = alone_renderer.render(camera, cam_from_body, light).part_id
+        alone = alone_renderer.render(camera, cam_from_body, light, normals=False).part_id
         if not self.moving:
-            objects = objects_renderer.render(camera, cam_from_body, light).part_id
+            objects = objects_renderer.render(camera, cam_from_body, light, normals=False).part_id
         elif np.any(scene.mesh.face_part_index >= scene.target_part_count):
             # The objects where they are in this frame.
             objects_renderer = Renderer(objects_only(scene), settings, variant)
-            objects = objects_renderer.render(camera, cam_from_body, light).part_id
+            objects = objects_renderer.render(camera, cam_from_body, light, normals=False).part_id
         else:  # every object left out of this frame
             objects = np.zeros_like(alone)
         object_id = scene.object_id(part_id)

@@ -248,8 +248,9 @@ def test_render_threads_come_from_the_environment(llvm_variant, monkeypatch) -> 
 
 def test_render_threads_leave_a_core_to_the_other_stages(llvm_variant, monkeypatch) -> None:
     """Beside the sensor and file stages, the CPU backend renders on one thread fewer than
-    the cores (never none), and its count is put back after the block, error or not; the
-    CUDA variant and an explicit SATSIGHT_RENDER_THREADS leave it alone."""
+    the cores (never none, never more than it had), and its count is put back after the
+    block, error or not; the CUDA variant and an explicit SATSIGHT_RENDER_THREADS leave it
+    alone."""
     import drjit as dr
 
     before = dr.thread_count()
@@ -261,6 +262,10 @@ def test_render_threads_leave_a_core_to_the_other_stages(llvm_variant, monkeypat
             with backend.render_threads_beside_other_work(CPU_VARIANT):
                 assert dr.thread_count() == inside
             assert dr.thread_count() == 5
+        dr.set_thread_count(3)  # fewer than asked for: kept
+        with backend.render_threads_beside_other_work(CPU_VARIANT):
+            assert dr.thread_count() == 3
+        dr.set_thread_count(5)
         with pytest.raises(RuntimeError), backend.render_threads_beside_other_work(CPU_VARIANT):
             raise RuntimeError("a frame failed")
         assert dr.thread_count() == 5

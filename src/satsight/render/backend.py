@@ -131,9 +131,9 @@ def machine_cores() -> int:
 @contextmanager
 def render_threads_beside_other_work(variant: str) -> Iterator[None]:
     """Within the block, the CPU backend renders on one thread fewer than the cores (at
-    least one), for a run whose other stages (the sensor, the file encoders) work beside
-    the renderer; then its thread count is put back. Nothing changes with the CUDA
-    variant or with ``SATSIGHT_RENDER_THREADS`` set.
+    least one, and never more than it had), for a run whose other stages (the sensor, the
+    file encoders) work beside the renderer; then its thread count is put back. Nothing
+    changes with the CUDA variant or with ``SATSIGHT_RENDER_THREADS`` set.
 
     Dr.Jit's workers wait for the next kernel by spinning, for tens of milliseconds, and
     the thread that launches a kernel computes with them until it ends: with one worker
@@ -147,7 +147,7 @@ def render_threads_beside_other_work(variant: str) -> Iterator[None]:
     import drjit as dr
 
     previous = dr.thread_count()
-    dr.set_thread_count(max(1, machine_cores() - 1))
+    dr.set_thread_count(min(previous, max(1, machine_cores() - 1)))
     try:
         yield
     finally:

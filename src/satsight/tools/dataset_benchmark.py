@@ -119,7 +119,10 @@ def run_cluster_scaling(frames: int = 40, size_px: tuple[int, int] = (1024, 1024
     on one thread (``SATSIGHT_RENDER_THREADS=1``); the one-worker run (its client, the
     scheduler and the worker) is held to one core, the other has them all. The speed-up
     is what more machines give. Steady rates (from the first to the last commit) leave the
-    cluster's start-up out."""
+    cluster's start-up out. CPU use and peak memory are the client's alone (the workers
+    are other processes), so they are left out."""
+    if frames < 3:
+        raise SatsightError("the cluster benchmark needs at least 3 frames per case")
     cores = len(os.sched_getaffinity(0))
     env = {**os.environ, "SATSIGHT_LOCAL_WORKERS": "always", "SATSIGHT_RENDER_THREADS": "1"}
     size = f"{size_px[0]}x{size_px[1]}"
@@ -127,11 +130,14 @@ def run_cluster_scaling(frames: int = 40, size_px: tuple[int, int] = (1024, 1024
     with tempfile.TemporaryDirectory(prefix="satsight-bench-") as tmp:
         for workers in sorted({1, cores}):
             out = str(Path(tmp) / f"w{workers}")
-            results[f"{workers}_workers"] = _child(
+            case = _child(
                 ["--case", size, "lean", str(frames), out, "--case-workers", str(workers),
                  "--case-cores", str(workers)],
                 env,
             )  # fmt: skip
+            for client_only in ("cpu_percent", "peak_rss_mb"):
+                case.pop(client_only)
+            results[f"{workers}_workers"] = case
     one, many = results["1_workers"], results[f"{cores}_workers"]
     return {
         "benchmark": "cluster_scaling",
@@ -178,7 +184,9 @@ def main(argv: list[str] | None = None) -> None:
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=21, help="frames per case (>= 3)")
+    parser.add_argument(
+        "--frames", type=int, help="frames per case (>= 3; default 21, 40 with --cluster-scaling)"
+    )
     parser.add_argument(
         "--cases",
         default=",".join(name for name, _, _ in DEFAULT_CASES),
@@ -204,14 +212,14 @@ def main(argv: list[str] | None = None) -> None:
                 args.case_cores,
             )  # fmt: skip
         elif args.cluster_scaling:
-            result = run_cluster_scaling(args.frames)
+            result = run_cluster_scaling(args.frames or 40)
         else:
             chosen = args.cases.split(",")
             unknown = set(chosen) - {name for name, _, _ in DEFAULT_CASES}
             if unknown:
                 parser.error(f"unknown case(s) {', '.join(sorted(unknown))}")
             cases = tuple(case for case in DEFAULT_CASES if case[0] in chosen)
-            result = run_dataset_benchmark(args.frames, cases)
+            result = run_dataset_benchmark(args.frames or 21, cases)
     except SatsightError as error:
         print(f"error: {error}", file=sys.stderr)
         raise SystemExit(2) from None
