@@ -255,24 +255,25 @@ def test_render_threads_leave_a_core_to_the_other_stages(llvm_variant, monkeypat
 
     before = dr.thread_count()
     try:
-        dr.set_thread_count(5)
+        dr.set_thread_count(9)
         monkeypatch.delenv("SATSIGHT_RENDER_THREADS", raising=False)
         for cores, inside in ((8, 7), (2, 1), (1, 1)):
             monkeypatch.setattr(backend, "machine_cores", lambda cores=cores: cores)
             with backend.render_threads_beside_other_work(CPU_VARIANT):
                 assert dr.thread_count() == inside
-            assert dr.thread_count() == 5
-        dr.set_thread_count(3)  # fewer than asked for: kept
+            assert dr.thread_count() == 9
+        monkeypatch.setattr(backend, "machine_cores", lambda: 8)
+        dr.set_thread_count(3)  # fewer than the rule's 7: kept
         with backend.render_threads_beside_other_work(CPU_VARIANT):
             assert dr.thread_count() == 3
-        dr.set_thread_count(5)
+        dr.set_thread_count(9)
         with pytest.raises(RuntimeError), backend.render_threads_beside_other_work(CPU_VARIANT):
             raise RuntimeError("a frame failed")
-        assert dr.thread_count() == 5
+        assert dr.thread_count() == 9
         with backend.render_threads_beside_other_work(GPU_VARIANT):
-            assert dr.thread_count() == 5
+            assert dr.thread_count() == 9
         monkeypatch.setenv("SATSIGHT_RENDER_THREADS", "3")
         with backend.render_threads_beside_other_work(CPU_VARIANT):
-            assert dr.thread_count() == 5
+            assert dr.thread_count() == 9
     finally:
         dr.set_thread_count(before)
