@@ -36,6 +36,7 @@ from satsight.errors import SatsightError
 from satsight.lighting import sh
 from satsight.lighting.light_field import LightField
 from satsight.lighting.scene_bodies import SceneBody
+from satsight.quadrature import gauss_legendre
 
 # Default polar nodes of the cone quadrature (twice as many azimuth nodes). Where the
 # terminator crosses the disc its kink limits the accuracy to order n_nodes^-2: with 64
@@ -135,7 +136,7 @@ def _cone_quadrature(
     cos_a = math.sqrt(h * (d + r)) / d
     one_minus_cos_a = sin_a**2 / (1.0 + cos_a)
 
-    x, wx = np.polynomial.legendre.leggauss(n)
+    x, wx = gauss_legendre(n)
     v = 0.5 * (x + 1.0)
     wv = 0.5 * wx
     mu = cos_a + one_minus_cos_a * v**2
