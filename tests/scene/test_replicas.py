@@ -182,3 +182,11 @@ def test_scenario_refuses_builtin_materials_for_a_replica_and_defaults_to_librar
     assert ProceduralTargetConfig(satellite_class="galaxy19").materials == "library"
     with pytest.raises(ValueError, match="has spectral-library materials only"):
         ProceduralTargetConfig(satellite_class="galaxy19", materials="builtin")
+
+
+def test_the_class_names_name_every_replica_builder() -> None:
+    """satellite_classes.REPLICA_CLASSES (read by the scenario check without the builders)
+    names the builders, in order."""
+    from satsight.scene.replicas import _BUILDERS
+
+    assert tuple(_BUILDERS) == REPLICA_CLASSES

@@ -9,18 +9,17 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from satsight.constants import DEFAULT_BAND_NM
-from satsight.scene.band_reflectance import builtins_from_library, library_materials
+from satsight.scene.band_reflectance import library_materials
 from satsight.scene.keypoints import (
     DEFAULT_KEYPOINT_COUNT,
     KeypointRule,
     read_keypoints_file,
 )
-from satsight.scene.loading import load_mesh
 from satsight.scene.material_library import LIBRARY_PREFIX, list_materials
 from satsight.scene.materials import FIRST_MATERIALS
 from satsight.scene.mesh import TargetMesh
-from satsight.scene.procedural import SATELLITE_CLASSES, generate_satellite
-from satsight.scene.replicas import REPLICA_CLASSES
+from satsight.scene.procedural_cache import satellite
+from satsight.scene.satellite_classes import REPLICA_CLASSES, SATELLITE_CLASSES
 
 
 class _Strict(BaseModel):
@@ -143,17 +142,16 @@ class TargetConfig(_Strict):
         p, m = self.procedural, self.mesh
         if p is not None:
             library = p.materials == "library"
-            return generate_satellite(
-                p.satellite_class,
-                p.seed,
-                smooth_normals=p.smooth_normals,
-                textures=p.textures,
-                materials=builtins_from_library(band_nm) if library else None,
-            )
+            return satellite(
+                p.satellite_class, p.seed, p.smooth_normals, p.textures,
+                band_nm if library else None,
+            )  # fmt: skip
         requested = [v for v in m.materials.values() if v.startswith(LIBRARY_PREFIX)]
         pool = {**FIRST_MATERIALS}
         if requested:
             pool.update(library_materials(requested, band_nm))
+        from satsight.scene.loading import load_mesh  # (the mesh tools: 0.6 s to import)
+
         return load_mesh(
             m.path,
             scale_m=m.scale_m,

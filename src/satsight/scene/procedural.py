@@ -50,14 +50,7 @@ from satsight.scene.primitives import rot as _rot
 from satsight.scene.primitives import textured as _textured
 from satsight.scene.primitives import tube as _tube
 from satsight.scene.replicas import REPLICA_CLASSES, build_replica
-
-SATELLITE_CLASSES: tuple[str, ...] = (
-    "body_mounted",
-    "one_wing",
-    "two_wings",
-    "four_panels",
-    "two_wings_dish",
-)
+from satsight.scene.satellite_classes import SATELLITE_CLASSES
 
 MAX_EXTENT_M = 9.8  # largest bounding-box side allowed before a safety rescale
 MIN_EXTENT_M = 2.2

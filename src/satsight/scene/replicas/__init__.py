@@ -33,6 +33,7 @@ from satsight.scene.mesh import TargetMesh, merge_parts
 from satsight.scene.normals import DEFAULT_CREASE_ANGLE_DEG
 from satsight.scene.primitives import Parts
 from satsight.scene.replicas import cloudsat, galaxy19, icesat2, jason2, oco2, tango
+from satsight.scene.satellite_classes import REPLICA_CLASSES as REPLICA_CLASSES
 
 _BUILDERS: dict[str, Callable[[Parts, np.random.Generator], None]] = {
     "icesat2": icesat2.build,
@@ -43,7 +44,7 @@ _BUILDERS: dict[str, Callable[[Parts, np.random.Generator], None]] = {
     "tango": tango.build,
 }
 
-REPLICA_CLASSES: tuple[str, ...] = tuple(_BUILDERS)
+# REPLICA_CLASSES (satellite_classes.py) names these builders, in this order (tested).
 
 
 def build_replica(
