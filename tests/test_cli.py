@@ -469,6 +469,18 @@ def test_bench_bad_sizes_exit_2(tmp_path: Path, sizes: str) -> None:
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize(
+    "args",
+    [["--dataset", "3", "--cluster-scaling", "3"], ["--cluster-scaling", "2"]],
+    ids=["both", "too-few-frames"],
+)
+def test_bench_refuses_two_modes_or_too_few_frames(tmp_path: Path, args: list) -> None:
+    result = invoke_satsight("bench", *args, cwd=tmp_path)
+    assert result.returncode == 2
+    assert "not both" in result.stderr or "x>=3" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
 # --- satsight camera ---------------------------------------------------------------------------
 def test_camera_command_reports_limiting_magnitudes_and_plots_the_mtf(tmp_path: Path) -> None:
     out = tmp_path / "camera"

@@ -177,6 +177,14 @@ def ablate(
     "(4096x4112 and 1024x1024, all outputs and lean), in child processes",
 )
 @click.option(
+    "--cluster-scaling",
+    "cluster_frames",
+    default=None,
+    type=click.IntRange(min=3),
+    help="instead: N frames at 1024x1024 on a Dask LocalCluster of one worker held to one "
+    "core, then of one worker per core (needs satsight[dask])",
+)
+@click.option(
     "--variant",
     default="auto",
     show_default=True,
@@ -189,8 +197,17 @@ def bench(
     no_scaling: bool,
     variant: str,
     dataset_frames: int | None,
+    cluster_frames: int | None,
 ) -> None:
-    """Time the render stage (or, with --dataset, whole datasets); prints JSON."""
+    """Time the render stage (or, with --dataset, whole datasets; with --cluster-scaling,
+    a local Dask cluster's speed-up); prints JSON."""
+    if dataset_frames is not None and cluster_frames is not None:
+        raise click.UsageError("choose --dataset or --cluster-scaling, not both")
+    if cluster_frames is not None:
+        from satsight.tools.dataset_benchmark import run_cluster_scaling
+
+        click.echo(json.dumps(run_cluster_scaling(cluster_frames), indent=2))
+        return
     if dataset_frames is not None:
         from satsight.tools.dataset_benchmark import run_dataset_benchmark
 
