@@ -25,6 +25,7 @@ import os
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +84,20 @@ class FrameArrays:
             return self
         image = replace(self.image, radiance_w_m2_sr=None, margin_radiance_w_m2_sr=None)
         return replace(self, image=image)
+
+    @cached_property
+    def surface_window(self) -> tuple[int, int, int, int]:
+        """The data window of the depth and normals files: the pixels that see a surface
+        (part id > 0; ``nonzero_window``), found once for both."""
+        return nonzero_window(self.image.part_id)
+
+    def exr_window(self, key: str) -> tuple[int, int, int, int] | None:
+        """The data window of the EXR file ``key``: radiance over its non-zero pixels (all
+        of them with the Earth or the Moon behind the target), depth and normals over
+        ``surface_window``."""
+        if key == "radiance_exr":
+            return nonzero_window(self.image.radiance_w_m2_sr)
+        return self.surface_window if key in WINDOWED_EXR else None
 
     def window(self, box: tuple[int, int, int, int] | None) -> FrameArrays:
         """The same arrays cut to ``box`` = (x0, y0, x1, y1), exclusive ends (None: all)."""
@@ -155,17 +170,6 @@ def nonzero_window(values: np.ndarray) -> tuple[int, int, int, int]:
     return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
 
 
-def exr_window(key: str, image: RadianceImage) -> tuple[int, int, int, int] | None:
-    """The data window of a frame's EXR file ``key``: radiance over its non-zero pixels
-    (all of them with the Earth or the Moon behind the target), depth and normals over the
-    pixels that see a surface (part id > 0)."""
-    if key == "radiance_exr":
-        return nonzero_window(image.radiance_w_m2_sr)
-    if key in WINDOWED_EXR:
-        return nonzero_window(image.part_id)
-    return None
-
-
 def _exr_channels(key: str, arrays: FrameArrays) -> dict[str, np.ndarray]:
     image = arrays.image
     if key == "radiance_exr":
@@ -192,7 +196,7 @@ def _write_file(
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         if key.endswith("_exr"):
-            window = exr_window(key, arrays.image)
+            window = arrays.exr_window(key)
             half = HALF_EXR_CHANNELS.get(key, ())
             write_exr(tmp, _exr_channels(key, arrays), window, half, exr_compression)
             checksum = file_checksum(tmp)

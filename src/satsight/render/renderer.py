@@ -473,10 +473,10 @@ class Renderer:
         above = y0 * width  # the rows above the box, then beside it, then below it
         beside = (y1 - y0) * (width - box_width)
         outside = n_pix - (y1 - y0) * box_width
+        row_part = max(1, width - box_width)  # pixels beside the box in a row (never 0)
         for start in range(0, outside, _PIXELS_PER_BLOCK):
             index = dr.arange(mi.UInt32, start, min(outside, start + _PIXELS_PER_BLOCK))
             side = index - above
-            row_part = max(1, width - box_width)
             column = side % row_part
             beside_pixel = (y0 + side // row_part) * width + dr.select(
                 column < x0, column, column + box_width
