@@ -90,26 +90,32 @@ def test_an_engine_whose_outputs_hold_no_normals_renders_none(
 ) -> None:
     """Without the normals output the engine renders no normals image (0.2 GB at 4K); the
     frame's other images and its record are those of an engine that renders them, and
-    the Simulator's engine (normals=True) always has them."""
+    the Simulator's engine (normals=True) always has them, in float32. A dataset engine
+    renders them in float16, as its file holds them: the float32 normals rounded to the
+    nearest half float."""
     views = {**VIEWS, "render": {**VIEWS["render"], "samples_per_pixel": samples_per_pixel}}
     lean = FrameEngine(parse_scenario({**views, "outputs": {"files": ["dn", "masks"]}}, "t"))
     full = FrameEngine(parse_scenario(views, "test"))
     asked = FrameEngine(parse_scenario({**views, "outputs": {"files": ["dn"]}}, "t"), True)
-    assert (lean.normals, full.normals, asked.normals) == (False, True, True)
+    assert (lean.normals, full.normals, asked.normals) == (False, "half", True)
     for index in range(lean.frame_count):
         without, with_normals = lean.render(index), full.render(index)
         assert without.image.normals_cam is None
         normals = with_normals.image.normals_cam
-        assert normals.shape == (SIZE_PX, SIZE_PX, 3)
+        assert normals.shape == (SIZE_PX, SIZE_PX, 3) and normals.dtype == np.float16
         seen = with_normals.image.part_id > 0
         assert seen.any()
-        np.testing.assert_allclose(np.linalg.norm(normals[seen], axis=-1), 1.0, atol=1e-5)
+        unit = np.linalg.norm(normals[seen].astype(np.float64), axis=-1)
+        np.testing.assert_allclose(unit, 1.0, atol=3 * 2.0**-11)  # three half-float roundings
         for name in ("radiance_w_m2_sr", "depth_m", "part_id"):
             assert np.array_equal(getattr(without.image, name), getattr(with_normals.image, name))
         lean_record, lean_arrays, _ = lean.finish(without)
         full_record, full_arrays, _ = full.finish(with_normals)
         assert lean_record == full_record
-        assert asked.render(index).image.normals_cam is not None
+        float32 = asked.render(index).image.normals_cam
+        assert float32.dtype == np.float32
+        np.testing.assert_allclose(np.linalg.norm(float32[seen], axis=-1), 1.0, atol=1e-5)
+        np.testing.assert_array_equal(float32.astype(np.float16), normals)
         # Frames waiting for their files keep the radiance only when a file holds it.
         kept = full_arrays.for_files(full.file_keys())
         assert kept.image.radiance_w_m2_sr is with_normals.image.radiance_w_m2_sr

@@ -1,45 +1,80 @@
 """The memory a run needs for its frame size, checked against the machine's before anything
-heavy is loaded.
+heavy is loaded, and the frames a local run keeps in flight within it.
 
 A frame's buffers grow with its pixel count: the renderer's radiance, depth, normal,
-part-id and mask images, the sensor chain's float64 copies (optics, photons, electrons,
-noise), the DN image, the encoded files, and up to 2 frames in flight at once (one
-rendering while the one before is sensed and written; 3 when these figures were measured,
-so they now overestimate by about a frame's buffers, ~0.5 GB at 4096^2, which errs on the
-safe side). Measured with ``benchmarks/frame_memory.py``
-(peak resident set size of ``satsight generate``, 6 frames of the example scenario at
-1024^2, 2048^2 and 4096^2 px, 2-core CPU, ``llvm_ad_rgb``): about 0.7 GB fixed
-(interpreter, Mitsuba, Dr.Jit's kernels, the mesh) plus 164 bytes a pixel with the lean
-outputs and 175 with all of them; neither samples per pixel nor supersampling changes it
-(passes accumulate into the same buffers). ``FIXED_BYTES`` and ``BYTES_PER_PIXEL`` round
-these up.
+part-id and mask images and its per-ray arrays, the sensor chain's float64 copies
+(optics, photons, electrons, noise), the DN image and the encoded files. A local run
+keeps two frames in flight when the memory allows (one rendering while the one before is
+sensed and written, ``PIPELINED_FRAMES``), else makes them one at a time and hands the
+renderer's freed buffers back to the system before each frame's sensor stage. Measured
+with ``benchmarks/frame_memory.py`` (peak resident set size of ``satsight generate``,
+frames of the example scenario at 1024^2, 2048^2 and 4096^2 px, 2-core CPU,
+``llvm_ad_rgb``; see ``BYTES_PER_PIXEL`` and ``BYTES_PER_PIXEL_IN_FLIGHT``): a fixed
+cost (interpreter, Mitsuba, Dr.Jit's kernels, the mesh) plus bytes per pixel for one frame
+and for each further frame in flight; neither samples per pixel nor supersampling changes
+it (passes accumulate into the same buffers). The constants round these up.
 
 The machine's memory is ``MemAvailable`` of ``/proc/meminfo`` (memory the kernel can hand
 out without swapping), or less where a cgroup (container) limit leaves less. The
 environment variable ``SATSIGHT_MEMORY_LIMIT_GB`` replaces it: a number of gigabytes to
-count on (a machine with swap, a figure known better), or ``off`` for no check.
+count on (a machine with swap, a figure known better, or a budget to keep a run within),
+or ``off`` for no check.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 import os
+from functools import cache
 from pathlib import Path
 
 from satsight.errors import SatsightError
 
-#: Memory of a run whatever its frame size, bytes (measured 0.67-0.71 GB).
-FIXED_BYTES = 0.75e9
-#: Memory per pixel of the frame, bytes (measured 164-175).
-BYTES_PER_PIXEL = 180.0
+#: Memory of a run whatever its frame size, bytes (fits: 0.55-0.66 GB).
+FIXED_BYTES = 0.7e9
+#: Memory per pixel of a run that makes one frame at a time, bytes (fits: 43.6 with the
+#: lean outputs, 48.5-48.7 with all of them, 1024^2 to 8192^2 px).
+BYTES_PER_PIXEL = 55.0
+#: Memory per pixel of each further frame in flight, bytes (fits of two in flight, 1024^2
+#: to 4096^2: 82.3 lean, 94.6 all, so 38.7-46.1 more; the RSSF example's 20 frames at
+#: 4096 x 4112 with all outputs, the Earth behind some, peaked at 2.28-2.39 GB, 95-100
+#: bytes a pixel over the fixed cost).
+BYTES_PER_PIXEL_IN_FLIGHT = 50.0
+#: Frames a local run keeps in flight when the memory allows: one renders while the one
+#: before is sensed and written.
+PIPELINED_FRAMES = 2
 #: The variable that replaces the machine's available memory (GB, or "off").
 MEMORY_LIMIT_VARIABLE = "SATSIGHT_MEMORY_LIMIT_GB"
 _GB = 1e9
 
 
-def frame_memory_bytes(width_px: int, height_px: int) -> float:
-    """Estimated peak memory (bytes) of a run that renders width x height px frames."""
-    return FIXED_BYTES + BYTES_PER_PIXEL * float(width_px) * float(height_px)
+def frame_memory_bytes(width_px: int, height_px: int, frames_in_flight: int = 1) -> float:
+    """Estimated peak memory (bytes) of a run that renders width x height px frames with
+    ``frames_in_flight`` frames in flight at once."""
+    per_pixel = BYTES_PER_PIXEL + BYTES_PER_PIXEL_IN_FLIGHT * (frames_in_flight - 1)
+    return FIXED_BYTES + per_pixel * float(width_px) * float(height_px)
+
+
+def frames_in_flight(
+    width_px: int, height_px: int, limit_bytes: float | None = None, environ: dict | None = None
+) -> tuple[int, str | None]:
+    """The frames a local run keeps in flight for width x height px frames:
+    ``PIPELINED_FRAMES`` when their estimate fits in ``limit_bytes`` (default:
+    ``memory_limit_bytes``, from ``environ``), else 1; and why, when 1 (else None)."""
+    if limit_bytes is None:
+        limit_bytes = memory_limit_bytes(environ)
+    need = frame_memory_bytes(width_px, height_px, PIPELINED_FRAMES)
+    if limit_bytes is None or need <= limit_bytes:
+        return PIPELINED_FRAMES, None
+    return 1, (
+        f"frames are made one at a time: {PIPELINED_FRAMES} in flight at {width_px} x "
+        f"{height_px} px would need about {need / _GB:.1f} GB, {limit_bytes / _GB:.1f} GB is "
+        f"available (one at a time needs about "
+        f"{frame_memory_bytes(width_px, height_px) / _GB:.1f} GB and is slower; "
+        f"{MEMORY_LIMIT_VARIABLE}=<GB> sets the memory to count on)"
+    )
 
 
 def available_memory_bytes(
@@ -136,3 +171,22 @@ def check_frame_memory(
         f"machine with more memory; {MEMORY_LIMIT_VARIABLE}=<GB> sets the memory to count "
         "on, 'off' skips this check)"
     )
+
+
+def return_freed_heap() -> None:
+    """Hand the heap memory this process has freed back to the system (glibc's
+    ``malloc_trim``; nothing where the C library has none). numpy's freed arrays below
+    glibc's mmap threshold (up to 32 MB) stay in the heap otherwise; measured on the RSSF
+    example at 4096 x 4112, one frame in flight: 0.1 GB less before each render."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+@cache
+def _malloc_trim():
+    name = ctypes.util.find_library("c")
+    try:
+        return getattr(ctypes.CDLL(name), "malloc_trim", None) if name else None
+    except OSError:
+        return None

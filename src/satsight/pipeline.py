@@ -166,9 +166,11 @@ class FrameEngine:
     (one ``generate`` run, or one distributed worker) builds them once.
     """
 
-    def __init__(self, scenario: Scenario, normals: bool | None = None):
-        """normals: render the normals image (``RadianceImage.normals_cam``); None: when
-        the outputs write it (a 4096 x 4112 frame's normals are 0.2 GB)."""
+    def __init__(self, scenario: Scenario, normals: bool | str | None = None):
+        """normals: render the normals image (``RadianceImage.normals_cam``): float32
+        (True), float16 (``"half"``) or not at all (False); None: in float16 when the
+        outputs write it (its file holds half floats), else not at all (a 4096 x 4112
+        frame's normals are 0.1 GB in float16, 0.2 GB in float32)."""
         camera = scenario.camera.build()
         check_frame_memory(camera.width_px, camera.height_px)  # before the mesh and renderer
         self.scenario = scenario
@@ -193,7 +195,7 @@ class FrameEngine:
         self._renderer: Renderer | None = None
         self.variation = FrameVariation.of(scenario, self.mesh)
         if normals is None:
-            normals = "normals_exr" in scenario.outputs.file_keys()
+            normals = "half" if "normals_exr" in scenario.outputs.file_keys() else False
         self.normals = normals
 
     def camera_mode(self, plan_index: int) -> str:

@@ -361,6 +361,41 @@ def test_workers_on_a_small_machine_render_in_one_process(
     assert distributed.local_workers(2, cores=2) == (2, None)
 
 
+def test_a_memory_limit_makes_frames_one_at_a_time_with_the_same_bytes(
+    tmp_path: Path, scenario_file: Path, reference_hashes, monkeypatch
+) -> None:
+    """With memory for one frame in flight but not two (``SATSIGHT_MEMORY_LIMIT_GB``), the
+    run says so and makes its frames one at a time: each render's freed buffers and the
+    freed heap are handed back before the next stage, and the bytes are the same."""
+    from satsight import frame_memory
+    from satsight.run import local
+
+    one = frame_memory.frame_memory_bytes(WIDTH_PX, HEIGHT_PX)
+    two = frame_memory.frame_memory_bytes(WIDTH_PX, HEIGHT_PX, frame_memory.PIPELINED_FRAMES)
+    assert one < two
+    between = f"{(one + two) / 2 / 1e9:.7f}"
+    assert one < float(between) * 1e9 < two
+    calls: list[str] = []
+    monkeypatch.setattr(local, "release_render_memory", lambda variant: calls.append("render"))
+    monkeypatch.setattr(local, "return_freed_heap", lambda: calls.append("heap"))
+    monkeypatch.setenv(frame_memory.MEMORY_LIMIT_VARIABLE, between)
+    out = tmp_path / "one-at-a-time"
+    result = invoke_satsight("generate", str(scenario_file), "--out", str(out), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    message = " ".join(result.stderr.split())
+    assert f"frames are made one at a time: 2 in flight at {WIDTH_PX} x {HEIGHT_PX} px" in message
+    assert calls == ["render", "heap"] * FRAME_COUNT
+    assert file_hashes(out) == reference_hashes
+    # With room for two, no line and nothing handed back between frames.
+    monkeypatch.setenv(frame_memory.MEMORY_LIMIT_VARIABLE, f"{two / 1e9 + 1e-6:.7f}")
+    calls.clear()
+    result = invoke_satsight("generate", str(scenario_file), "--out", str(tmp_path / "two"),
+                             cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 0 and "one at a time" not in result.stderr
+    assert calls == []
+    assert file_hashes(tmp_path / "two") == reference_hashes
+
+
 def test_one_cpu_gives_the_same_bytes(tmp_path: Path, scenario_file: Path, reference_hashes):
     """Under ``taskset -c 0`` the sensor's noise runs on one thread, the renderer on one
     core: the bytes do not depend on the thread count."""

@@ -154,6 +154,17 @@ def render_threads_beside_other_work(variant: str) -> Iterator[None]:
         dr.set_thread_count(previous)
 
 
+def release_render_memory(variant: str) -> None:
+    """Hand the buffers the renderer has freed, which Dr.Jit keeps for its next kernels,
+    back to the system (CPU variant; nothing with CUDA, whose memory is the GPU's). A
+    4096 x 4112 frame's render leaves about 0.3 GB of them behind its images."""
+    if variant != CPU_VARIANT:
+        return
+    import drjit as dr
+
+    dr.flush_malloc_cache()
+
+
 def _limit_cpu_threads() -> None:
     """Dr.Jit's CPU threads from ``SATSIGHT_RENDER_THREADS``, when it is set."""
     text = os.environ.get("SATSIGHT_RENDER_THREADS", "").strip()

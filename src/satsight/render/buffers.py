@@ -33,7 +33,8 @@ class RadianceImage:
     depth_m: (H, W) float32 distance along the optical axis (+z), 0 where no surface.
     part_id: (H, W) uint16 part index + 1 of the visible surface, 0 for background.
     normals_cam: (H, W, 3) float32 unit surface normals in the camera frame, facing the
-    camera; zero for background. None when the render was asked for none.
+    camera; zero for background. float16 when the render was asked for half floats (a
+    dataset run that writes them to a half-float file), None when asked for none.
     margin_px, margin_radiance_w_m2_sr: the radiance (n, 3) of the pixels of a ring
     ``margin_px`` wide around the frame, in ``margin_pixels_xy`` order (None without one).
     background_id: (H, W) uint8 body seen behind the target (see ``background_mask``),

@@ -179,6 +179,8 @@ class CameraRays:
         pixels of a frame traced in blocks."""
         dr = self._dr
         depth, part_id, n_cam, background = self._label_values(frame, rays)
+        if images[2] is not None and dr.type_v(images[2]) == dr.VarType.Float16:
+            n_cam = dr.float16_array_t(type(n_cam))(n_cam)  # a half-float normals image
         for image, value in zip(images, (depth, part_id, n_cam, *background), strict=True):
             if image is not None:  # (the normals when none are asked for)
                 dr.scatter(image, value, pixel)

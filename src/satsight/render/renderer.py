@@ -152,7 +152,7 @@ class Renderer:
         light: LightField,
         seed: int = 0,
         margin_px: int = 0,
-        normals: bool = True,
+        normals: bool | str = True,
     ) -> RadianceImage:
         """Render one frame.
 
@@ -161,9 +161,9 @@ class Renderer:
         (e.g. from ``SeedSequence([scenario_seed, frame_index])``), so a frame's noise does
         not depend on which frames were rendered before it. margin_px: also render the
         radiance of a ring this wide around the frame (``RadianceImage.margin_radiance_w_m2_sr``),
-        which the optics blur into the frame's edge pixels. normals: also the normals image
-        (False: ``normals_cam`` is None, and its 12 bytes a pixel are neither traced nor
-        held).
+        which the optics blur into the frame's edge pixels. normals: also the normals image,
+        float32 (True) or float16 (``"half"``: what a half-float file holds, 6 bytes a pixel
+        instead of 12); False: ``normals_cam`` is None, neither traced nor held.
         """
         mi, dr = self._mi, self._dr
         if mi.variant() != self.variant:  # another renderer switched Mitsuba's variant
@@ -384,7 +384,7 @@ class Renderer:
         n_pix: int,
         with_labels: bool,
         box: tuple | None = None,
-        normals: bool = True,
+        normals: bool | str = True,
     ) -> tuple:
         """Radiance (flat Float, three values per pixel) of pixels 0..n_pix-1 (positions
         from ``frame.pixel_position_px``), averaged over the settings' passes, and, with
@@ -392,7 +392,7 @@ class Renderer:
         box: (x0, y0, x1, y1, width), the only pixels of an image that passes of one path
         per pixel trace (``_target_box_px``); the others keep radiance and labels 0, but
         for the Earth and the Moon behind the target (``_bodies_outside_box``). normals:
-        whether the labels hold the normals image (else None in its place)."""
+        whether the labels hold the normals image, and its type (``render``'s)."""
         mi, dr = self._mi, self._dr
         s = self.settings
         camera_rays = self._camera_rays
@@ -410,8 +410,8 @@ class Renderer:
         radiance = dr.zeros(mi.Float, 3 * n_pix)
         labels: tuple = ()
         if centre_labels:  # written block by block (``CameraRays.labels_into``)
-            labels = (dr.zeros(mi.Float, n_pix), dr.zeros(mi.UInt32, n_pix),
-                      dr.zeros(mi.Float, 3 * n_pix) if normals else None)  # fmt: skip
+            normals_image = dr.zeros(self._normals_type(normals), 3 * n_pix) if normals else None
+            labels = (dr.zeros(mi.Float, n_pix), dr.zeros(mi.UInt32, n_pix), normals_image)
             if frame.bodies_in_view:
                 labels += (dr.zeros(mi.UInt8, n_pix),)
         first = 0
@@ -455,11 +455,17 @@ class Renderer:
                 frame, px, py, lambda layer: mi.Float(LABEL_OPACITY_THRESHOLD)
             )
             labels = camera_rays.labels(frame, rays, idx)
-            if not normals:  # never evaluated
-                labels = (labels[0], labels[1], None, labels[3])
+            image = self._normals_type(normals)(labels[2]) if normals else None
+            labels = (labels[0], labels[1], image, labels[3])  # (never evaluated if None)
         if s.passes > 1:
             radiance = radiance * (1.0 / s.passes)
         return radiance, labels
+
+    def _normals_type(self, normals: bool | str):
+        """The flat array type of the normals image: Float, or its float16 for ``"half"``."""
+        if normals == "half":
+            return self._dr.float16_array_t(self._mi.Float)
+        return self._mi.Float
 
     def _bodies_outside_box(self, frame: FrameValues, box: tuple, n_pix: int, radiance, labels):
         """Add the Earth's and the Moon's radiance along the pixel-centre rays of the pixels

@@ -3,16 +3,19 @@ keeps every core busy."""
 
 from __future__ import annotations
 
+import logging
 import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from satsight.frame_memory import frames_in_flight, return_freed_heap
 from satsight.pipeline import FrameEngine
-from satsight.render.backend import render_threads_beside_other_work
+from satsight.render.backend import release_render_memory, render_threads_beside_other_work
 from satsight.run.frame_stages import ENCODER_THREADS, sense_frame, write_frame
 from satsight.run.interrupt import StopFlag
 
@@ -23,11 +26,7 @@ from satsight.run.interrupt import StopFlag
 # -> 0.141 / 0.143 s, its CPU use 161 -> 128 %.
 BLAS_THREADS = 1
 
-# Frames rendered but not yet committed: one in the sensor or being written while the next
-# renders (about 0.5 GB each at 4096 x 4112). Measured on the RSSF example, 20 frames at
-# 4096 x 4112, all outputs, 2 cores: 3 in flight 1.18-1.24 s a frame and a 3.3 GB peak,
-# 2 in flight 1.10-1.18 s and 2.8 GB, 1 in flight 1.22 s and 2.1 GB.
-MAX_FRAMES_IN_FLIGHT = 2
+log = logging.getLogger(__name__)
 
 
 def run_local(
@@ -37,14 +36,26 @@ def run_local(
     commit: Callable[[dict], None],
     stop: StopFlag,
     times: dict[str, list[float]],
+    in_flight: int | None = None,
 ) -> None:
-    """Render the frames of ``todo`` in this process as a three-stage pipeline: frame k+2
-    renders while frame k+1 goes through the sensor and frame k's files are encoded (on
+    """Render the frames of ``todo`` in this process as a three-stage pipeline: frame k+1
+    renders while frame k goes through the sensor and then has its files encoded (on
     ``ENCODER_THREADS`` threads), so that every core stays busy; the renderer keeps one core
     fewer than the machine's for its threads (``render_threads_beside_other_work``) and
-    numpy's BLAS ``BLAS_THREADS``."""
+    numpy's BLAS ``BLAS_THREADS``.
+
+    in_flight: frames rendered but not yet committed (None: as many as the memory holds,
+    ``satsight.frame_memory.frames_in_flight``). With 1, each frame is rendered, sensed
+    and written before the next (the renderer then keeps all its threads); the renderer's
+    freed buffers go back to the system before its sensor stage, and the heap freed by the
+    sensor and the writer before the next render: the least memory, at some speed."""
+    if in_flight is None:
+        in_flight, why = frames_in_flight(engine.camera.width_px, engine.camera.height_px)
+        if why is not None:
+            log.warning("%s", why)
+    variant = engine.renderer.variant
     with (
-        render_threads_beside_other_work(engine.renderer.variant),
+        render_threads_beside_other_work(variant) if in_flight > 1 else nullcontext(),
         threadpool_limits(limits=BLAS_THREADS, user_api="blas"),
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-sensor") as sensor,
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-writer") as writer,
@@ -68,11 +79,15 @@ def run_local(
                 t0 = time.perf_counter()
                 frame = engine.render(frame_index)
                 times.setdefault("render", []).append(time.perf_counter() - t0)
+                if in_flight == 1:
+                    release_render_memory(variant)
                 sensed = sensor.submit(sense_frame, engine, frame)
                 pending.append(writer.submit(sense_then_write, sensed))
                 del frame, sensed
-                while len(pending) >= MAX_FRAMES_IN_FLIGHT:
+                while len(pending) >= in_flight:
                     commit_oldest()
+                if in_flight == 1:
+                    return_freed_heap()
             while pending:
                 commit_oldest()
         except BaseException:
