@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from satsight.constants import EARTH_MEAN_RADIUS_M, WGS84_SEMI_MAJOR_AXIS_M
+from satsight.errors import SatsightError
 from satsight.lighting import sh
 from satsight.lighting.bodies import (
     DEFAULT_SH_NODES,
@@ -116,3 +117,27 @@ def test_the_light_field_takes_the_scene_earth_when_given() -> None:
     np.testing.assert_array_equal(field.sh_radiance_w_m2_sr, scene_body_sh(body, l_max=L_MAX))
     uniform = environment_light_field(sun, E_SUN_W_M2, earth_center_from_target_m=center)
     assert not np.allclose(field.sh_radiance_w_m2_sr, uniform.sh_radiance_w_m2_sr, rtol=1e-2)
+
+
+def test_a_grey_map_is_its_three_channel_copy() -> None:
+    """A grey map (rows, cols, 1) looks up, and projects onto SH, as the same map repeated
+    in three channels; other channel counts are refused."""
+    rgb = _patchy_map()
+    grey = AlbedoMap(rgb.albedo_rgb[..., :1], "grey")
+    rng = np.random.default_rng(2)
+    lat, lon = rng.uniform(-1.6, 1.6, 500), rng.uniform(-3.2, 3.2, 500)
+    looked_up = grey.lookup(lat, lon)
+    assert looked_up.shape == (500, 3)
+    np.testing.assert_array_equal(looked_up, rgb.lookup(lat, lon))
+    center = (
+        np.array([0.1, -0.2, -1.0]) * (WGS84_SEMI_MAJOR_AXIS_M + 500e3) / math.hypot(0.1, 0.2, 1.0)
+    )
+    sun = np.array([0.3, 0.2, 0.93])
+    bodies = [
+        earth_body(center, np.eye(3), 0.3, sun, E_SUN_W_M2, albedo_map=m) for m in (grey, rgb)
+    ]
+    np.testing.assert_array_equal(
+        scene_body_sh(bodies[0], l_max=4), scene_body_sh(bodies[1], l_max=4)
+    )
+    with pytest.raises(SatsightError, match=r"\(rows, cols, 3\) or \(rows, cols, 1\)"):
+        AlbedoMap(np.zeros((4, 8, 2), np.float32))

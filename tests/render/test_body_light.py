@@ -27,7 +27,7 @@ from satsight.constants import (
 )
 from satsight.frames.rigid import look_at_cam_from_body
 from satsight.lighting.light_field import LightField
-from satsight.lighting.scene_bodies import BACKGROUND_EARTH, earth_body
+from satsight.lighting.scene_bodies import BACKGROUND_EARTH, AlbedoMap, earth_body
 from satsight.render.renderer import Renderer
 from satsight.render.settings import RenderSettings
 from satsight.scene.materials import Material
@@ -189,3 +189,20 @@ def test_the_wgs84_limb_lies_where_the_tangent_cone_puts_it(renderer):
     assert abs(measured_x - expected_x) <= 1.0
     assert abs(measured_y - expected_y) <= 1.0
     assert expected_x - expected_y > 1.0  # the flattening is resolved
+
+
+def test_a_grey_albedo_map_renders_as_its_three_channel_copy(renderer):
+    """A grey map (rows, cols, 1), as the Earth's map is held (a third of the memory), gives
+    the bytes of the same map repeated in three channels: the texture's one channel is
+    every colour's."""
+    camera, pose, light = _earth_view(60_000e3)
+    rng = np.random.default_rng(5)
+    grey = rng.uniform(0.02, 0.9, size=(90, 180, 1)).astype(np.float32)
+    images = []
+    for values in (grey, np.repeat(grey, 3, axis=2)):
+        earth = dataclasses.replace(light.bodies[0], albedo_map=AlbedoMap(values, "test"))
+        image = renderer.render(camera, pose, dataclasses.replace(light, bodies=(earth,)), 3)
+        images.append(image)
+    assert (images[0].background_mask() == BACKGROUND_EARTH).sum() > 1000
+    np.testing.assert_array_equal(images[0].radiance_w_m2_sr, images[1].radiance_w_m2_sr)
+    assert len({np.round(v, 6) for v in images[0].radiance_w_m2_sr[..., 0].ravel()}) > 100

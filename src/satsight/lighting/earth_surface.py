@@ -224,8 +224,7 @@ def build_albedo_map(model: EarthSurfaceModel) -> AlbedoMap:
         + json.dumps({**asdict(model), "cloud_albedo": round(cloud_albedo, 5)})
         + f"; area-mean albedo {mean:.4f}"
     )
-    rgb = np.repeat(albedo.astype(np.float32)[..., None], 3, axis=2)
-    return AlbedoMap(rgb, description)
+    return AlbedoMap(albedo.astype(np.float32)[..., None], description)  # a grey map
 
 
 # Maps kept in memory, the most recently used last: a randomised cloud cover draws one map
@@ -250,7 +249,7 @@ def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
         try:
             with np.load(path) as data:
                 grey = data["albedo"].astype(np.float32) / 65535.0
-                albedo_map = AlbedoMap(np.repeat(grey[..., None], 3, axis=2), str(data["about"]))
+                albedo_map = AlbedoMap(grey[..., None], str(data["about"]))
         except (OSError, ValueError, KeyError):
             albedo_map = None  # a damaged cache file is rebuilt
     if albedo_map is None:
@@ -259,8 +258,7 @@ def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
         write_npz_atomically(path, albedo=grey, about=np.array(albedo_map.description))
         # What is kept is the 16-bit value, so a fresh build and a cache read agree.
         albedo_map = AlbedoMap(
-            np.repeat((grey.astype(np.float32) / 65535.0)[..., None], 3, axis=2),
-            albedo_map.description,
+            (grey.astype(np.float32) / 65535.0)[..., None], albedo_map.description
         )
     _MEMORY[key] = albedo_map
     while len(_MEMORY) > _MEMORY_MAPS:
@@ -269,11 +267,11 @@ def earth_albedo_map(model: EarthSurfaceModel | None = None) -> AlbedoMap:
 
 
 def map_mean_albedo(albedo_map: AlbedoMap) -> float:
-    """Area-weighted mean albedo of a map (green channel)."""
-    rows = albedo_map.albedo_rgb.shape[0]
+    """Area-weighted mean albedo of a map (green channel; a grey map's one)."""
+    rows, _, channels = albedo_map.albedo_rgb.shape
     lat = 90.0 - (np.arange(rows) + 0.5) * 180.0 / rows
     weights = np.cos(np.radians(lat))[:, None] * np.ones(albedo_map.albedo_rgb.shape[1])
-    return float(np.average(albedo_map.albedo_rgb[..., 1], weights=weights))
+    return float(np.average(albedo_map.albedo_rgb[..., min(1, channels - 1)], weights=weights))
 
 
 __all__ = [
