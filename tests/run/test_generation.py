@@ -364,9 +364,10 @@ def test_workers_on_a_small_machine_render_in_one_process(
 def test_a_memory_limit_makes_frames_one_at_a_time_with_the_same_bytes(
     tmp_path: Path, scenario_file: Path, reference_hashes, monkeypatch
 ) -> None:
-    """With memory for one frame in flight but not two (``SATSIGHT_MEMORY_LIMIT_GB``), the
-    run says so and makes its frames one at a time: each render's freed buffers and the
-    freed heap are handed back before the next stage, and the bytes are the same."""
+    """With memory for one frame in flight but not two (``--memory-gb``, or
+    ``SATSIGHT_MEMORY_LIMIT_GB``), the run says so and makes its frames one at a time:
+    each render's freed buffers and the freed heap are handed back before the next stage,
+    and the bytes are the same."""
     from satsight import frame_memory
     from satsight.run import local
 
@@ -378,15 +379,21 @@ def test_a_memory_limit_makes_frames_one_at_a_time_with_the_same_bytes(
     calls: list[str] = []
     monkeypatch.setattr(local, "release_render_memory", lambda variant: calls.append("render"))
     monkeypatch.setattr(local, "return_freed_heap", lambda: calls.append("heap"))
-    monkeypatch.setenv(frame_memory.MEMORY_LIMIT_VARIABLE, between)
+    monkeypatch.delenv(frame_memory.MEMORY_LIMIT_VARIABLE, raising=False)
     out = tmp_path / "one-at-a-time"
-    result = invoke_satsight("generate", str(scenario_file), "--out", str(out), cwd=tmp_path)
+    result = invoke_satsight(
+        "generate", str(scenario_file), "--out", str(out), "--memory-gb", between, cwd=tmp_path
+    )
     assert result.returncode == 0, result.stderr
     message = " ".join(result.stderr.split())
     assert f"frames are made one at a time: 2 in flight at {WIDTH_PX} x {HEIGHT_PX} px" in message
+    assert f"{float(between):.1f} GB is available" in message
     assert calls == ["render", "heap"] * FRAME_COUNT
     assert file_hashes(out) == reference_hashes
-    # With room for two, no line and nothing handed back between frames.
+    assert frame_memory.MEMORY_LIMIT_VARIABLE not in os.environ  # put back after the run
+    # The variable does the same; with room for two, no line and nothing handed back.
+    monkeypatch.setenv(frame_memory.MEMORY_LIMIT_VARIABLE, between)
+    assert local.frames_in_flight(WIDTH_PX, HEIGHT_PX)[0] == 1
     monkeypatch.setenv(frame_memory.MEMORY_LIMIT_VARIABLE, f"{two / 1e9 + 1e-6:.7f}")
     calls.clear()
     result = invoke_satsight("generate", str(scenario_file), "--out", str(tmp_path / "two"),
@@ -394,6 +401,10 @@ def test_a_memory_limit_makes_frames_one_at_a_time_with_the_same_bytes(
     assert result.returncode == 0 and "one at a time" not in result.stderr
     assert calls == []
     assert file_hashes(tmp_path / "two") == reference_hashes
+    result = invoke_satsight("generate", str(scenario_file), "--out", str(tmp_path / "bad"),
+                             "--memory-gb", "0", cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "--memory-gb" in result.stderr and not (tmp_path / "bad").exists()
 
 
 def test_one_cpu_gives_the_same_bytes(tmp_path: Path, scenario_file: Path, reference_hashes):

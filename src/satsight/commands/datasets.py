@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -147,6 +150,14 @@ def demo(out_dir: Path, overwrite: bool, resume: bool) -> None:
     type=click.IntRange(min=16),
     help="also write a crop of this size centred on the target (scenario: outputs.crop)",
 )
+@click.option(
+    "--memory-gb",
+    default=None,
+    type=click.FloatRange(min=0.0, min_open=True),
+    help="memory the run may use, GB: frames are made one at a time (slower) where two in "
+    "flight would need more; default: the machine's available memory "
+    "(SATSIGHT_MEMORY_LIMIT_GB)",
+)
 def generate(
     config: Path,
     out_dir: Path,
@@ -157,6 +168,7 @@ def generate(
     scheduler: str | None,
     outputs: str | None,
     crop_px: int | None,
+    memory_gb: float | None,
 ) -> None:
     """Render the scenario in CONFIG (YAML) into a dataset folder, frame by frame.
 
@@ -168,7 +180,29 @@ def generate(
         from satsight.run.scheduler_address import scheduler_address
 
         scheduler = scheduler_address(scheduler)  # at once, before the scenario loads
-    _generate(config, out_dir, overwrite, resume, shard, workers, scheduler, outputs, crop_px)
+    with _memory_limit(memory_gb):
+        _generate(config, out_dir, overwrite, resume, shard, workers, scheduler, outputs, crop_px)
+
+
+@contextmanager
+def _memory_limit(memory_gb: float | None) -> Iterator[None]:
+    """Within the block, ``SATSIGHT_MEMORY_LIMIT_GB`` is ``memory_gb`` (unchanged if None):
+    the frame-size check, the frames in flight and local Dask workers (which inherit the
+    environment) all count on it."""
+    from satsight.frame_memory import MEMORY_LIMIT_VARIABLE
+
+    if memory_gb is None:
+        yield
+        return
+    previous = os.environ.get(MEMORY_LIMIT_VARIABLE)
+    os.environ[MEMORY_LIMIT_VARIABLE] = repr(float(memory_gb))
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(MEMORY_LIMIT_VARIABLE, None)
+        else:
+            os.environ[MEMORY_LIMIT_VARIABLE] = previous
 
 
 @click.command()
