@@ -518,3 +518,23 @@ def test_the_disk_cache_gives_back_the_built_catalogue(tmp_path, monkeypatch):
         assert path.stat().st_size > 1_000_000
     finally:
         sc._full_catalog.cache_clear()
+
+
+def test_unit_directions_are_the_views_own_and_shared_with_the_full_catalogue() -> None:
+    """A view's unit ICRS directions (kept from the full catalogue, cut to the view) are
+    those of its own right ascensions and declinations, bit for bit, and the same memory
+    as the full catalogue's."""
+    bright, faint = load_star_catalog(6.0), load_star_catalog(9.0)
+    assert 0 < len(bright) < len(faint)
+    for view in (bright, faint):
+        x, y, z = view.unit_xyz_icrs
+        assert x.shape == y.shape == z.shape == (len(view),)
+        cos_dec = np.cos(view.dec_rad)
+        np.testing.assert_array_equal(x, cos_dec * np.cos(view.ra_rad))
+        np.testing.assert_array_equal(y, cos_dec * np.sin(view.ra_rad))
+        np.testing.assert_array_equal(z, np.sin(view.dec_rad))
+        np.testing.assert_allclose(x * x + y * y + z * z, 1.0, rtol=1e-14)
+    assert np.shares_memory(bright.unit_xyz_icrs[0], faint.unit_xyz_icrs[0])
+    # A subset taken from a view computes its own.
+    some = faint.take(np.array([5, 1, 40]))
+    np.testing.assert_array_equal(some.unit_xyz_icrs[2], np.sin(some.dec_rad))
