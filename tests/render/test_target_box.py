@@ -107,3 +107,37 @@ def test_a_box_of_most_of_the_frame_or_behind_the_camera_is_no_box(llvm_variant)
     # The camera inside the box: corners behind it.
     inside = RigidTransform(np.eye(3), -mesh.center_m)
     assert renderer._target_box_px(CAMERA, inside) is None
+
+
+@pytest.mark.parametrize("samples_per_pixel", [1, 4])
+@pytest.mark.parametrize(
+    ("shift_px", "ring_traced"),
+    [(0.0, False), (10.0, True), (128.0, True), (300.0, False)],
+)  # inside; its box just in the ring; cut by the right edge; past the ring
+def test_a_ring_the_target_cannot_reach_is_not_traced_and_is_zero(
+    llvm_variant, monkeypatch, samples_per_pixel, shift_px, ring_traced
+) -> None:
+    """The ring around the image (``margin_px``) is traced only where the target's
+    projected box reaches into it, or a body is in view; otherwise it is the zeros that
+    tracing gives, byte for byte, and so are the image's own pixels."""
+    mesh = generate_satellite("two_wings", seed=1)
+    settings = RenderSettings(bounces=1, environment="off", samples_per_pixel=samples_per_pixel)
+    renderer = Renderer(mesh, settings)
+    pose = View(120.0, math.radians(30.0), math.radians(10.0)).cam_from_body(mesh.center_m)
+    shift_m = shift_px * CAMERA.pixel_pitch_m / CAMERA.focal_length_m * 120.0
+    pose = RigidTransform(pose.R_a_from_b, pose.t_a_from_b_m + np.array([shift_m, 0.0, 0.0]))
+    margin = 12
+    traced = []
+    original = Renderer._render_margin.__get__(renderer)
+    monkeypatch.setattr(renderer, "_render_margin", lambda *a: traced.append(1) or original(*a))
+    skipped = renderer.render(CAMERA, pose, LIGHT, seed=7, margin_px=margin)
+    assert bool(traced) == ring_traced
+    monkeypatch.setattr(renderer, "_margin_sees_target", lambda *a: True)
+    whole = renderer.render(CAMERA, pose, LIGHT, seed=7, margin_px=margin)
+    assert np.array_equal(skipped.margin_radiance_w_m2_sr, whole.margin_radiance_w_m2_sr)
+    assert np.array_equal(skipped.radiance_w_m2_sr, whole.radiance_w_m2_sr)
+    assert skipped.margin_radiance_w_m2_sr.dtype == np.float32
+    if not ring_traced:  # (the box is conservative: a traced ring may still be all 0)
+        assert whole.margin_radiance_w_m2_sr.max() == 0
+    if shift_px == 128.0:
+        assert whole.margin_radiance_w_m2_sr.max() > 0 and whole.radiance_w_m2_sr.max() > 0

@@ -191,7 +191,11 @@ class Renderer:
             dr.eval(normals_image)
         margin_radiance = None
         if margin_px > 0:
-            margin_radiance = self._render_margin(frame, width, height, margin_px)
+            if frame.bodies_in_view or self._margin_sees_target(camera, cam_from_body, margin_px):
+                margin_radiance = self._render_margin(frame, width, height, margin_px)
+            else:  # every ring ray sees empty space (0), as tracing them would give
+                ring_count = len(margin_pixels_xy(width, height, margin_px)[0])
+                margin_radiance = np.zeros((ring_count, 3), dtype=np.float32)
         radiance_w_m2_sr = radiance.numpy().reshape(height, width, 3)
         grid = None
         if self.settings.integrate_footprint:
@@ -358,25 +362,52 @@ class Renderer:
         dr.eval(value)
         return np.stack([value[k].numpy() for k in range(3)], axis=-1)
 
-    def _target_box_px(self, camera: PinholeCamera, cam_from_body: RigidTransform):
-        """(x0, y0, x1, y1, width): the image's pixels whose rays may meet the target (the
-        projected corners of its box, widened by a pixel for the passes' sub-pixel
-        positions), or None when that is the whole image or the box reaches behind the
-        camera. Every other pixel sees empty space: radiance and labels 0."""
+    def _projected_box_px(self, camera: PinholeCamera, cam_from_body: RigidTransform):
+        """(x0, y0, x1, y1), exclusive ends, unclipped: the pixels whose rays may meet the
+        target, those of the projected corners of its box widened by a pixel for the
+        passes' sub-pixel positions; None when the box reaches behind the camera."""
         corners = cam_from_body.apply(self.mesh.box_keypoints_body_m[:8])
         if np.any(corners[:, 2] <= 0):
             return None
         uv = camera.project(corners)
+        return (
+            int(np.floor(uv[:, 0].min())) - 1,
+            int(np.floor(uv[:, 1].min())) - 1,
+            int(np.ceil(uv[:, 0].max())) + 2,
+            int(np.ceil(uv[:, 1].max())) + 2,
+        )
+
+    def _target_box_px(self, camera: PinholeCamera, cam_from_body: RigidTransform):
+        """(x0, y0, x1, y1, width): the image's pixels whose rays may meet the target
+        (``_projected_box_px`` within the image), or None when that is the whole image or
+        the box reaches behind the camera. Every other pixel sees empty space: radiance and
+        labels 0."""
+        projected = self._projected_box_px(camera, cam_from_body)
+        if projected is None:
+            return None
         width, height = camera.width_px, camera.height_px
-        x0 = max(0, int(np.floor(uv[:, 0].min())) - 1)
-        y0 = max(0, int(np.floor(uv[:, 1].min())) - 1)
-        x1 = min(width, int(np.ceil(uv[:, 0].max())) + 2)
-        y1 = min(height, int(np.ceil(uv[:, 1].max())) + 2)
+        x0, y0 = max(0, projected[0]), max(0, projected[1])
+        x1, y1 = min(width, projected[2]), min(height, projected[3])
         if x1 <= x0 or y1 <= y0:
             return (0, 0, 0, 0, width)
         if (x1 - x0) * (y1 - y0) > 0.5 * width * height:
             return None  # most of the frame: tracing it whole is as cheap
         return (x0, y0, x1, y1, width)
+
+    def _margin_sees_target(
+        self, camera: PinholeCamera, cam_from_body: RigidTransform, margin_px: int
+    ) -> bool:
+        """Whether a ray of the ring ``margin_px`` wide around the image may meet the target
+        (``_projected_box_px`` reaches into the ring, or behind the camera)."""
+        box = self._projected_box_px(camera, cam_from_body)
+        if box is None:
+            return True
+        m, width, height = margin_px, camera.width_px, camera.height_px
+        x0, y0 = max(-m, box[0]), max(-m, box[1])
+        x1, y1 = min(width + m, box[2]), min(height + m, box[3])
+        if x1 <= x0 or y1 <= y0:
+            return False  # the box misses the image and its ring
+        return x0 < 0 or y0 < 0 or x1 > width or y1 > height
 
     def _radiance_passes(
         self,
