@@ -19,8 +19,10 @@ from satsight.frames.quaternion import matrix_from_quaternion
 from satsight.poses.plan import plan_track
 from satsight.poses.pose_rates import (
     pose_at_offset,
+    poses_at_offsets,
     rotation_from_vector,
     rotation_vector,
+    rotations_from_vectors,
     track_at_offset,
 )
 
@@ -115,6 +117,18 @@ def test_views_in_the_body_frame_do_not_move() -> None:
         assert not np.any(getattr(track, name))
 
 
+def test_poses_at_many_offsets_are_those_at_each(fly_by) -> None:
+    offsets = np.linspace(-0.1, 0.1, 17)
+    for k in (0, len(fly_by) // 2, len(fly_by) - 1):
+        R, t = poses_at_offsets(fly_by, k, offsets)
+        assert R.shape == (17, 3, 3) and t.shape == (17, 3)
+        for i, tau in enumerate(offsets):
+            R_one, t_one = pose_at_offset(fly_by, k, tau)
+            np.testing.assert_allclose(R[i], R_one, rtol=0, atol=1e-15)
+            np.testing.assert_allclose(t[i], t_one, rtol=0, atol=1e-9)
+        assert np.array_equal(R[8], matrix_from_quaternion(fly_by.q_cam_from_body[k]))  # tau 0
+
+
 def test_rotation_vectors_round_trip_through_the_exponential_map() -> None:
     rng = np.random.default_rng(4)
     for w in rng.normal(size=(20, 3)):
@@ -123,6 +137,13 @@ def test_rotation_vectors_round_trip_through_the_exponential_map() -> None:
         np.testing.assert_allclose(R, Rotation.from_rotvec(w).as_matrix(), atol=1e-12)
         q = Rotation.from_rotvec(w).as_quat(scalar_first=True)
         np.testing.assert_allclose(rotation_vector(q), w, atol=1e-12)
+    many = rng.normal(size=(50, 3)) * rng.uniform(0.0, 1.0, size=(50, 1))
+    many[7] = 0.0  # the identity
+    many[9] = 1e-16
+    np.testing.assert_allclose(
+        rotations_from_vectors(many), Rotation.from_rotvec(many).as_matrix(), rtol=0, atol=1e-12
+    )
+    assert np.array_equal(rotations_from_vectors(many)[7], np.eye(3))
 
 
 def test_the_sun_turns_in_body_axes_with_the_target_alone() -> None:

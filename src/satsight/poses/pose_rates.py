@@ -68,13 +68,26 @@ def rotation_vector(q: np.ndarray) -> np.ndarray:
 
 def rotation_from_vector(rotation_vector_rad: np.ndarray) -> np.ndarray:
     """(3, 3) rotation by the rotation vector (3,) rad (Rodrigues' formula)."""
-    w = np.asarray(rotation_vector_rad, dtype=np.float64).reshape(3)
-    angle = float(np.linalg.norm(w))
-    if angle < 1e-15:
-        return np.eye(3)
-    k = w / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+    return rotations_from_vectors(np.reshape(rotation_vector_rad, (1, 3)))[0]
+
+
+def rotations_from_vectors(rotation_vectors_rad: np.ndarray) -> np.ndarray:
+    """(K, 3, 3) rotations by the rotation vectors (K, 3) rad (Rodrigues' formula); the
+    identity below 1e-15 rad."""
+    w = np.asarray(rotation_vectors_rad, dtype=np.float64).reshape(-1, 3)
+    angle = np.sqrt(np.einsum("ki,ki->k", w, w))
+    still = angle < 1e-15
+    k = w / np.where(still, 1.0, angle)[:, None]
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
+    R = (
+        np.eye(3)
+        + np.sin(angle)[:, None, None] * K
+        + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
+    )
+    R[still] = np.eye(3)
+    return R
 
 
 def body_rate_rad_s(q_ref_from_x_before: np.ndarray, q_ref_from_x_after: np.ndarray,
@@ -92,14 +105,21 @@ def body_rate_rad_s(q_ref_from_x_before: np.ndarray, q_ref_from_x_after: np.ndar
 def pose_at_offset(track: PoseTrack, index: int, offset_s: float) -> tuple[np.ndarray, np.ndarray]:
     """(R_cam_from_body (3, 3), t_cam_from_body_m (3,)) of frame ``index`` at ``offset_s``
     from its time, from the frame's rates (module docstring)."""
-    tau = float(offset_s)
+    R, t = poses_at_offsets(track, index, np.array([float(offset_s)]))
+    return R[0], t[0]
+
+
+def poses_at_offsets(
+    track: PoseTrack, index: int, offsets_s: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(R_cam_from_body (K, 3, 3), t_cam_from_body_m (K, 3)) of frame ``index`` at the
+    offsets ``offsets_s`` (K,) from its time, from the frame's rates (module docstring)."""
+    tau = np.asarray(offsets_s, dtype=np.float64).reshape(-1)
     R0 = matrix_from_quaternion(track.q_cam_from_body[index])
-    R = (
-        rotation_from_vector(-track.omega_cam_rad_s[index] * tau)
-        @ R0
-        @ rotation_from_vector(track.omega_body_rad_s[index] * tau)
-    )
-    t = track.t_cam_from_body_m[index] + track.t_dot_cam_from_body_m_s[index] * tau
+    turn_cam = rotations_from_vectors(-track.omega_cam_rad_s[index] * tau[:, None])
+    turn_body = rotations_from_vectors(track.omega_body_rad_s[index] * tau[:, None])
+    R = turn_cam @ R0 @ turn_body
+    t = track.t_cam_from_body_m[index] + track.t_dot_cam_from_body_m_s[index] * tau[:, None]
     return R, t
 
 

@@ -36,7 +36,7 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.errors import SatsightError
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.light_field import LightField
-from satsight.poses.pose_rates import pose_at_offset, track_at_offset
+from satsight.poses.pose_rates import poses_at_offsets, track_at_offset
 from satsight.poses.track import PoseTrack
 from satsight.render.buffers import RadianceImage
 
@@ -93,13 +93,14 @@ def corner_paths_px(
     """(K, M, 2) pixel positions of the points ``corners_body_m`` (M, 3) at the offsets
     ``offsets_s`` (K,) s from frame ``index``'s time; corners_body_m may also be a function
     of the offset giving them (points that move in the body frame: flying objects)."""
-    paths = []
-    for tau in np.asarray(offsets_s, dtype=np.float64):
-        corners = corners_body_m(float(tau)) if callable(corners_body_m) else corners_body_m
-        corners = np.asarray(corners, dtype=np.float64).reshape(-1, 3)
-        R, t = pose_at_offset(track, index, float(tau))
-        paths.append(camera.project(corners @ R.T + t))
-    return np.stack(paths)
+    offsets = np.asarray(offsets_s, dtype=np.float64).reshape(-1)
+    R, t = poses_at_offsets(track, index, offsets)  # (K, 3, 3), (K, 3)
+    if callable(corners_body_m):
+        points = np.stack([np.asarray(corners_body_m(float(tau)), dtype=np.float64).reshape(-1, 3)
+                           for tau in offsets])  # fmt: skip
+    else:
+        points = np.asarray(corners_body_m, dtype=np.float64).reshape(1, -1, 3)
+    return camera.project(points @ R.transpose(0, 2, 1) + t[:, None, :])
 
 
 def exposure_motion(
