@@ -141,3 +141,40 @@ def test_a_ring_the_target_cannot_reach_is_not_traced_and_is_zero(
         assert whole.margin_radiance_w_m2_sr.max() == 0
     if shift_px == 128.0:
         assert whole.margin_radiance_w_m2_sr.max() > 0 and whole.radiance_w_m2_sr.max() > 0
+
+
+def test_frames_of_other_boxes_reuse_the_compiled_kernels(llvm_variant) -> None:
+    """Frames whose target boxes differ run the same kernels: no per-frame number (the box,
+    a NumPy array's alignment) is baked into a kernel, which would compile new kernels
+    (0.1-0.5 s each) for every frame. Kernels that differ only in their numbers come in at
+    most two variants (an input aligned to 64 bytes or not, for the small copy into Dr.Jit's
+    own memory)."""
+    import re
+
+    import drjit as dr
+
+    mesh = generate_satellite("two_wings", seed=1)
+    renderer = Renderer(mesh, RenderSettings(bounces=1, environment="unshadowed"))
+    variants: dict[str, set] = {}
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        dr.kernel_history()
+        for k, (distance_m, shift_px) in enumerate([(120, 0), (150, 40), (200, -50), (300, 70)]):
+            pose = View(distance_m, math.radians(30 + 7 * k), math.radians(10)).cam_from_body(
+                mesh.center_m
+            )
+            shift_m = shift_px * CAMERA.pixel_pitch_m / CAMERA.focal_length_m * distance_m
+            pose = RigidTransform(pose.R_a_from_b, pose.t_a_from_b_m + np.array([shift_m, 0, 0]))
+            assert renderer._target_box_px(CAMERA, pose) is not None
+            renderer.render(CAMERA, pose, LIGHT, seed=k, margin_px=8)
+            for kernel in dr.kernel_history():
+                if kernel["type"] == dr.KernelType.JIT:
+                    ir = kernel["ir"] if isinstance(kernel["ir"], str) else kernel["ir"].getvalue()
+                    shape = re.sub(r"\b\d+\b", "N", re.sub(r"drjit_[0-9a-f]+", "K", ir))
+                    variants.setdefault(shape, set()).add(kernel["hash"])
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    assert len(variants) > 5
+    assert max(len(hashes) for hashes in variants.values()) <= 2, sorted(
+        len(h) for h in variants.values()
+    )

@@ -55,6 +55,7 @@ from satsight.render.camera_rays import LABEL_OPACITY_THRESHOLD, CameraRays
 from satsight.render.environment_light import EnvironmentLight
 from satsight.render.footprint import FootprintGrid, compose_pixels, plan_footprint
 from satsight.render.frame_values import FrameValues
+from satsight.render.kernel_arrays import kernel_array
 from satsight.render.path_streams import PathStreams
 from satsight.render.path_tracing import PathTracer
 from satsight.render.settings import RenderSettings
@@ -305,8 +306,8 @@ class Renderer:
         just outside it. Its random streams are apart from the frame's (another key)."""
         mi, dr = self._mi, self._dr
         ring_x, ring_y = margin_pixels_xy(width, height, margin_px)
-        table_x = mi.Float(ring_x.astype(np.float32))
-        table_y = mi.Float(ring_y.astype(np.float32))
+        table_x = kernel_array(mi.Float, ring_x.astype(np.float32))
+        table_y = kernel_array(mi.Float, ring_y.astype(np.float32))
         ring = dataclasses.replace(
             frame,
             seed_key0=frame.seed_key0 ^ 0x5BD1E995,
@@ -324,8 +325,12 @@ class Renderer:
         one path per cell along its anchored ray (its own random streams, another key),
         summed over each pixel's area with the background at the pixel centre."""
         mi, dr = self._mi, self._dr
-        origin = mi.Point3f(*(mi.Float(c) for c in grid.origin_render_m.T.astype(np.float32)))
-        direction = mi.Vector3f(*(mi.Float(c) for c in grid.direction_body.T.astype(np.float32)))
+        origin = mi.Point3f(
+            *(kernel_array(mi.Float, c) for c in grid.origin_render_m.T.astype(np.float32))
+        )
+        direction = mi.Vector3f(
+            *(kernel_array(mi.Float, c) for c in grid.direction_body.T.astype(np.float32))
+        )
         cells = dataclasses.replace(
             frame,
             seed_key0=frame.seed_key0 ^ 0x2545F491,
@@ -353,8 +358,8 @@ class Renderer:
         mi, dr = self._mi, self._dr
         columns = grid.pixels % grid.frame_width_px
         rows = grid.pixels // grid.frame_width_px
-        px = mi.Float(columns.astype(np.float32))
-        py = mi.Float(rows.astype(np.float32))
+        px = kernel_array(mi.Float, columns.astype(np.float32))
+        py = kernel_array(mi.Float, rows.astype(np.float32))
         _, d_body = self._camera_rays.directions(frame, px, py)
         value, _ = self._body_light.radiance(
             frame.bodies, frame.camera_render_m, d_body, mi.Bool(True)
@@ -460,10 +465,13 @@ class Renderer:
                 if box is not None:
                     x0, y0, x1, y1, width = box
                     traced = (x1 - x0) * (y1 - y0)
+                    # The box's corner and width are opaque: as literals they would make
+                    # new kernels (compiled, 0.1-0.5 s each) for every box, every frame.
+                    box_x0, box_y0, box_width = (dr.opaque(mi.UInt32, v) for v in (x0, y0, x1 - x0))
                 for start in range(0, traced, _PIXELS_PER_BLOCK):
                     block = dr.arange(mi.UInt32, start, min(traced, start + _PIXELS_PER_BLOCK))
                     if box is not None:  # the box's pixels, row by row
-                        block = (y0 + block // (x1 - x0)) * width + x0 + block % (x1 - x0)
+                        block = (box_y0 + block // box_width) * width + box_x0 + block % box_width
                     self._trace_lanes(frame, block, first_pass, block, radiance, labels)
                     dr.eval(radiance, *labels)
                 if box is not None and frame.bodies_in_view:
@@ -511,17 +519,26 @@ class Renderer:
         beside = (y1 - y0) * (width - box_width)
         outside = n_pix - (y1 - y0) * box_width
         row_part = max(1, width - box_width)  # pixels beside the box in a row (never 0)
+        # Opaque, as in ``_radiance_passes``: one compiled kernel for every box.
+        opaque = {name: dr.opaque(mi.UInt32, value) for name, value in (
+            ("x0", x0), ("y0", y0), ("box_width", box_width), ("above", above),
+            ("beside", beside), ("row_part", row_part), ("box_pixels", (y1 - y0) * box_width),
+        )}  # fmt: skip
         for start in range(0, outside, _PIXELS_PER_BLOCK):
             index = dr.arange(mi.UInt32, start, min(outside, start + _PIXELS_PER_BLOCK))
-            side = index - above
-            column = side % row_part
-            beside_pixel = (y0 + side // row_part) * width + dr.select(
-                column < x0, column, column + box_width
+            side = index - opaque["above"]
+            column = side % opaque["row_part"]
+            beside_pixel = (opaque["y0"] + side // opaque["row_part"]) * width + dr.select(
+                column < opaque["x0"], column, column + opaque["box_width"]
             )
             pixel = dr.select(
-                index < above,
+                index < opaque["above"],
                 index,
-                dr.select(index < above + beside, beside_pixel, index + (y1 - y0) * box_width),
+                dr.select(
+                    index < opaque["above"] + opaque["beside"],
+                    beside_pixel,
+                    index + opaque["box_pixels"],
+                ),
             )
             px, py = frame.pixel_position_px(pixel)
             _, d_body = self._camera_rays.directions(frame, px, py)
