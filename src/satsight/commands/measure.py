@@ -185,6 +185,12 @@ def ablate(
     "core, then of one worker per core (needs satsight[dask])",
 )
 @click.option(
+    "--warm-kernels",
+    is_flag=True,
+    help="with --dataset or --cluster-scaling: keep the Dr.Jit kernel cache of earlier runs "
+    "(default: each case compiles its kernels, as a first dataset of new views does)",
+)
+@click.option(
     "--variant",
     default="auto",
     show_default=True,
@@ -198,6 +204,7 @@ def bench(
     variant: str,
     dataset_frames: int | None,
     cluster_frames: int | None,
+    warm_kernels: bool,
 ) -> None:
     """Time the render stage (or, with --dataset, whole datasets; with --cluster-scaling,
     a local Dask cluster's speed-up); prints JSON."""
@@ -206,12 +213,14 @@ def bench(
     if cluster_frames is not None:
         from satsight.tools.dataset_benchmark import run_cluster_scaling
 
-        click.echo(json.dumps(run_cluster_scaling(cluster_frames), indent=2))
+        cache = "warm" if warm_kernels else "cold"
+        click.echo(json.dumps(run_cluster_scaling(cluster_frames, kernel_cache=cache), indent=2))
         return
     if dataset_frames is not None:
         from satsight.tools.dataset_benchmark import run_dataset_benchmark
 
-        click.echo(json.dumps(run_dataset_benchmark(dataset_frames), indent=2))
+        cache = "warm" if warm_kernels else "cold"
+        click.echo(json.dumps(run_dataset_benchmark(dataset_frames, kernel_cache=cache), indent=2))
         return
     from satsight.tools.render_benchmark import parse_sizes_px, run_render_benchmark
 

@@ -14,6 +14,11 @@ peak resident memory and CPU time are its own. Reported per case:
 * ``stage_median_s``: median seconds per frame of the render, sensor and file stages (they
   overlap in the pipeline, so they do not add up to the wall time);
 * ``megabytes_per_frame``: bytes written per frame.
+
+Kernels: by default each case starts with an empty Dr.Jit kernel cache (``DRJIT_CACHE_DIR``
+in a fresh folder), as a user's first dataset of new views does; with the user's own
+cache (``kernel_cache="warm"``, ``--warm-kernels``) the kernels compiled by earlier runs of
+the same frames are read from disk, which hides what compiling costs.
 """
 
 from __future__ import annotations
@@ -114,7 +119,9 @@ def _child(arguments: list[str], env: dict | None = None) -> dict:
     return json.loads(done.stdout)
 
 
-def run_cluster_scaling(frames: int = 40, size_px: tuple[int, int] = (1024, 1024)) -> dict:
+def run_cluster_scaling(
+    frames: int = 40, size_px: tuple[int, int] = (1024, 1024), kernel_cache: str = "cold"
+) -> dict:
     """A Dask LocalCluster of one worker against one worker per core, each worker rendering
     on one thread (``SATSIGHT_RENDER_THREADS=1``); the one-worker run (its client, the
     scheduler and the worker) is held to one core, the other has them all. The speed-up
@@ -124,12 +131,16 @@ def run_cluster_scaling(frames: int = 40, size_px: tuple[int, int] = (1024, 1024
     if frames < 3:
         raise SatsightError("the cluster benchmark needs at least 3 frames per case")
     cores = len(os.sched_getaffinity(0))
-    env = {**os.environ, "SATSIGHT_LOCAL_WORKERS": "always", "SATSIGHT_RENDER_THREADS": "1"}
     size = f"{size_px[0]}x{size_px[1]}"
     results = {}
     with tempfile.TemporaryDirectory(prefix="satsight-bench-") as tmp:
         for workers in sorted({1, cores}):
             out = str(Path(tmp) / f"w{workers}")
+            env = {
+                **_kernel_cache_env(kernel_cache, Path(tmp) / f"w{workers}-kernels"),
+                "SATSIGHT_LOCAL_WORKERS": "always",
+                "SATSIGHT_RENDER_THREADS": "1",
+            }
             case = _child(
                 ["--case", size, "lean", str(frames), out, "--case-workers", str(workers),
                  "--case-cores", str(workers)],
@@ -142,6 +153,7 @@ def run_cluster_scaling(frames: int = 40, size_px: tuple[int, int] = (1024, 1024
     return {
         "benchmark": "cluster_scaling",
         "scenario": "examples/rssf_dataset.yaml (first N frames), lean outputs",
+        "kernel_cache": kernel_cache,
         "machine": {"cpu_count": cores, "platform": platform.platform()},
         "cases": results,
         "speedup_steady": one["steady_seconds_per_frame"] / many["steady_seconds_per_frame"],
@@ -149,27 +161,44 @@ def run_cluster_scaling(frames: int = 40, size_px: tuple[int, int] = (1024, 1024
     }
 
 
+def _kernel_cache_env(kernel_cache: str, folder: Path) -> dict[str, str]:
+    """The environment of a case's child: ``"cold"``, an empty Dr.Jit kernel cache in
+    ``folder``; ``"warm"``, the user's own."""
+    if kernel_cache not in ("cold", "warm"):
+        raise SatsightError(f"kernel_cache must be 'cold' or 'warm', got {kernel_cache!r}")
+    if kernel_cache == "warm":
+        return dict(os.environ)
+    folder.mkdir(parents=True, exist_ok=False)
+    return {**os.environ, "DRJIT_CACHE_DIR": str(folder)}
+
+
 def run_dataset_benchmark(
-    frames: int = 21, cases: tuple = DEFAULT_CASES, work_dir: Path | None = None
+    frames: int = 21,
+    cases: tuple = DEFAULT_CASES,
+    work_dir: Path | None = None,
+    kernel_cache: str = "cold",
 ) -> dict:
-    """Every case in a child process of its own; JSON-ready results."""
+    """Every case in a child process of its own; JSON-ready results. kernel_cache: "cold"
+    (each case compiles its kernels, module docstring) or "warm"."""
     if frames < 3:
         raise SatsightError("the dataset benchmark needs at least 3 frames per case")
     results = {}
     with tempfile.TemporaryDirectory(prefix="satsight-bench-", dir=work_dir) as tmp:
         for name, size_px, outputs in cases:
             out = Path(tmp) / name
+            env = _kernel_cache_env(kernel_cache, Path(tmp) / f"{name}-kernels")
             command = [
                 sys.executable, "-m", "satsight.tools.dataset_benchmark", "--case",
                 f"{size_px[0]}x{size_px[1]}", outputs, str(frames), str(out),
             ]  # fmt: skip
-            done = subprocess.run(command, capture_output=True, text=True, check=False)
+            done = subprocess.run(command, capture_output=True, text=True, check=False, env=env)
             if done.returncode != 0:
                 raise SatsightError(f"benchmark case {name} failed:\n{done.stderr[-2000:]}")
             results[name] = json.loads(done.stdout)
     return {
         "benchmark": "dataset",
         "scenario": "examples/rssf_dataset.yaml (first N frames of the RSSF plan)",
+        "kernel_cache": kernel_cache,
         "machine": {
             "cpu_count": len(os.sched_getaffinity(0)),
             "platform": platform.platform(),
@@ -198,6 +227,12 @@ def main(argv: list[str] | None = None) -> None:
         help="instead: a LocalCluster of 1 worker on 1 core against 1 worker per core",
     )
     parser.add_argument(
+        "--warm-kernels",
+        action="store_true",
+        help="keep the user's Dr.Jit kernel cache (default: each case starts with an empty "
+        "one and compiles its kernels, as a first dataset of new views does)",
+    )
+    parser.add_argument(
         "--case", nargs=4, metavar=("SIZE", "OUTPUTS", "FRAMES", "OUT"), help=argparse.SUPPRESS
     )
     parser.add_argument("--case-workers", type=int, help=argparse.SUPPRESS)
@@ -212,14 +247,18 @@ def main(argv: list[str] | None = None) -> None:
                 args.case_cores,
             )  # fmt: skip
         elif args.cluster_scaling:
-            result = run_cluster_scaling(args.frames or 40)
+            result = run_cluster_scaling(
+                args.frames or 40, kernel_cache="warm" if args.warm_kernels else "cold"
+            )
         else:
             chosen = args.cases.split(",")
             unknown = set(chosen) - {name for name, _, _ in DEFAULT_CASES}
             if unknown:
                 parser.error(f"unknown case(s) {', '.join(sorted(unknown))}")
             cases = tuple(case for case in DEFAULT_CASES if case[0] in chosen)
-            result = run_dataset_benchmark(args.frames or 21, cases)
+            result = run_dataset_benchmark(
+                args.frames or 21, cases, kernel_cache="warm" if args.warm_kernels else "cold"
+            )
     except SatsightError as error:
         print(f"error: {error}", file=sys.stderr)
         raise SystemExit(2) from None
