@@ -25,6 +25,16 @@ CAMERA = PinholeCamera(focal_length_m=0.05, pixel_pitch_m=15e-6, width_px=240, h
 LIGHT = LightField.sun_only(np.array([0.3, -0.5, 0.8]) / math.sqrt(0.98), 1361.0)
 
 
+def _shifted_view(mesh, shift_px: float, distance_m: float = 120.0, azimuth_deg: float = 30.0):
+    """The target seen from ``distance_m``, moved across the image by ``shift_px`` (at its
+    distance)."""
+    pose = View(distance_m, math.radians(azimuth_deg), math.radians(10.0)).cam_from_body(
+        mesh.center_m
+    )
+    shift_m = shift_px * CAMERA.pixel_pitch_m / CAMERA.focal_length_m * distance_m
+    return RigidTransform(pose.R_a_from_b, pose.t_a_from_b_m + np.array([shift_m, 0.0, 0.0]))
+
+
 def _images(
     renderer: Renderer, pose: RigidTransform, box_off: bool, monkeypatch, light=LIGHT
 ) -> list:
@@ -44,10 +54,7 @@ def test_the_box_gives_the_whole_frames_bytes(
     mesh = generate_satellite("two_wings", seed=1)
     settings = RenderSettings(bounces=1, environment="off", samples_per_pixel=samples_per_pixel)
     renderer = Renderer(mesh, settings)
-    pose = View(120.0, math.radians(30.0), math.radians(10.0)).cam_from_body(mesh.center_m)
-    # Moved across the image by shift_px at the target's distance.
-    shift_m = shift_px * CAMERA.pixel_pitch_m / CAMERA.focal_length_m * 120.0
-    pose = RigidTransform(pose.R_a_from_b, pose.t_a_from_b_m + np.array([shift_m, 0.0, 0.0]))
+    pose = _shifted_view(mesh, shift_px)
     box = renderer._target_box_px(CAMERA, pose)
     assert box is not None and (box[2] - box[0]) * (box[3] - box[1]) < 0.5 * 240 * 180
     if shift_px:
@@ -123,9 +130,7 @@ def test_a_ring_the_target_cannot_reach_is_not_traced_and_is_zero(
     mesh = generate_satellite("two_wings", seed=1)
     settings = RenderSettings(bounces=1, environment="off", samples_per_pixel=samples_per_pixel)
     renderer = Renderer(mesh, settings)
-    pose = View(120.0, math.radians(30.0), math.radians(10.0)).cam_from_body(mesh.center_m)
-    shift_m = shift_px * CAMERA.pixel_pitch_m / CAMERA.focal_length_m * 120.0
-    pose = RigidTransform(pose.R_a_from_b, pose.t_a_from_b_m + np.array([shift_m, 0.0, 0.0]))
+    pose = _shifted_view(mesh, shift_px)
     margin = 12
     traced = []
     original = Renderer._render_margin.__get__(renderer)
@@ -160,11 +165,7 @@ def test_frames_of_other_boxes_reuse_the_compiled_kernels(llvm_variant) -> None:
     try:
         dr.kernel_history()
         for k, (distance_m, shift_px) in enumerate([(120, 0), (150, 40), (200, -50), (300, 70)]):
-            pose = View(distance_m, math.radians(30 + 7 * k), math.radians(10)).cam_from_body(
-                mesh.center_m
-            )
-            shift_m = shift_px * CAMERA.pixel_pitch_m / CAMERA.focal_length_m * distance_m
-            pose = RigidTransform(pose.R_a_from_b, pose.t_a_from_b_m + np.array([shift_m, 0, 0]))
+            pose = _shifted_view(mesh, shift_px, distance_m, 30 + 7 * k)
             assert renderer._target_box_px(CAMERA, pose) is not None
             renderer.render(CAMERA, pose, LIGHT, seed=k, margin_px=8)
             for kernel in dr.kernel_history():
