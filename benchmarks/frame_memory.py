@@ -29,14 +29,14 @@ import tempfile
 _CHILD = """
 import json, sys, time
 from pathlib import Path
-import satsight.run.local
+import satsight.run.generation
 from satsight.api import load_scenario
 from satsight.cli import example_scenario_path
 from satsight.run.generation import generate_dataset
 
 size, outputs, out = int(sys.argv[1]), sys.argv[2].split(","), Path(sys.argv[3])
 in_flight = int(sys.argv[6])
-satsight.run.local.frames_in_flight = lambda width, height: (in_flight, None)
+satsight.run.generation.frames_in_flight = lambda width, height: (in_flight, None)
 frames = [{"distance_km": 0.8, "azimuth_deg": 20.0 + 30.0 * k, "elevation_deg": 25.0}
           for k in range(int(sys.argv[5]))]
 scenario = load_scenario(example_scenario_path(), {

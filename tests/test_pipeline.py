@@ -116,6 +116,9 @@ def test_an_engine_whose_outputs_hold_no_normals_renders_none(
         assert float32.dtype == np.float32
         np.testing.assert_allclose(np.linalg.norm(float32[seen], axis=-1), 1.0, atol=1e-5)
         np.testing.assert_array_equal(float32.astype(np.float16), normals)
+        with pytest.raises(ValueError, match="normals must be True, False or 'half'"):
+            full.renderer.render(full.camera, full.track.cam_from_body(index),
+                                 with_normals.light, normals="float16")  # fmt: skip
         # Frames waiting for their files keep the radiance only when a file holds it.
         kept = full_arrays.for_files(full.file_keys())
         assert kept.image.radiance_w_m2_sr is with_normals.image.radiance_w_m2_sr

@@ -32,16 +32,28 @@ from pathlib import Path
 
 from satsight.errors import SatsightError
 
-#: Memory of a run whatever its frame size, bytes (fits: 0.55-0.66 GB).
-FIXED_BYTES = 0.7e9
-#: Memory per pixel of a run that makes one frame at a time, bytes (fits: 43.6 with the
-#: lean outputs, 48.5-48.7 with all of them, 1024^2 to 8192^2 px).
-BYTES_PER_PIXEL = 55.0
-#: Memory per pixel of each further frame in flight, bytes (fits of two in flight, 1024^2
-#: to 4096^2: 82.3 lean, 94.6 all, so 38.7-46.1 more; the RSSF example's 20 frames at
-#: 4096 x 4112 with all outputs, the Earth behind some, peaked at 2.28-2.39 GB, 95-100
-#: bytes a pixel over the fixed cost).
+# A local run that makes one frame at a time (each stage in turn on one thread, the
+# render's freed buffers and the freed heap handed back, ``satsight.run.local``): fits of
+# 6 frames of the example at 1024^2 to 4096^2, 0.37 GB + 45.9 (lean) to 51.5 (all outputs)
+# bytes a pixel. The constants round these up.
+#: Memory of a run whatever its frame size, one frame at a time, bytes.
+FIXED_BYTES = 0.4e9
+#: Memory per pixel of a run that makes one frame at a time, bytes.
+BYTES_PER_PIXEL = 60.0
+# Each further frame in flight (two in flight: 0.63-0.64 GB + 82.3-94.6 bytes a pixel; the
+# RSSF example's 20 frames at 4096 x 4112 with all outputs, the Earth behind some, peaked
+# at 2.13-2.39 GB).
+#: Memory of each further frame in flight whatever its size (threads' heaps), bytes.
+IN_FLIGHT_FIXED_BYTES = 0.3e9
+#: Memory per pixel of each further frame in flight, bytes.
 BYTES_PER_PIXEL_IN_FLIGHT = 50.0
+# A process that makes one frame at a time and keeps Dr.Jit's buffers between frames: the
+# Python interface (float32 normals) and a Dask worker (a 1-worker LocalCluster peaked at
+# 0.64 GB at 128^2 px, 0.92 GB at 2048^2, 1.87 GB at 4096^2, 69-73 bytes a pixel over 0.75).
+#: Memory of such a process whatever its frame size, bytes.
+KEPT_FIXED_BYTES = 0.75e9
+#: Memory per pixel of such a process, bytes.
+KEPT_BYTES_PER_PIXEL = 80.0
 #: Frames a local run keeps in flight when the memory allows: one renders while the one
 #: before is sensed and written.
 PIPELINED_FRAMES = 2
@@ -50,11 +62,19 @@ MEMORY_LIMIT_VARIABLE = "SATSIGHT_MEMORY_LIMIT_GB"
 _GB = 1e9
 
 
-def frame_memory_bytes(width_px: int, height_px: int, frames_in_flight: int = 1) -> float:
-    """Estimated peak memory (bytes) of a run that renders width x height px frames with
-    ``frames_in_flight`` frames in flight at once."""
-    per_pixel = BYTES_PER_PIXEL + BYTES_PER_PIXEL_IN_FLIGHT * (frames_in_flight - 1)
-    return FIXED_BYTES + per_pixel * float(width_px) * float(height_px)
+def frame_memory_bytes(
+    width_px: int, height_px: int, frames_in_flight: int = 1, kept: bool = False
+) -> float:
+    """Estimated peak memory (bytes) of a local run that renders width x height px frames
+    with ``frames_in_flight`` frames in flight at once; with ``kept``, of a process that
+    makes one frame at a time and keeps Dr.Jit's buffers (the Python interface, a Dask
+    worker)."""
+    pixels = float(width_px) * float(height_px)
+    if kept:
+        return KEPT_FIXED_BYTES + KEPT_BYTES_PER_PIXEL * pixels
+    more = frames_in_flight - 1
+    fixed = FIXED_BYTES + IN_FLIGHT_FIXED_BYTES * more
+    return fixed + (BYTES_PER_PIXEL + BYTES_PER_PIXEL_IN_FLIGHT * more) * pixels
 
 
 def frames_in_flight(
@@ -129,44 +149,57 @@ def memory_limit_bytes(environ: dict | None = None) -> float | None:
     return gigabytes * _GB
 
 
-def largest_frame_px(width_px: int, height_px: int, limit_bytes: float) -> tuple[int, int]:
-    """The largest frame of the same shape (aspect ratio) whose estimate fits in
-    ``limit_bytes``; (0, 0) where not even the fixed cost fits."""
-    pixels = (limit_bytes - FIXED_BYTES) / BYTES_PER_PIXEL
+def largest_frame_px(
+    width_px: int, height_px: int, limit_bytes: float, kept: bool = False
+) -> tuple[int, int]:
+    """The largest frame of the same shape (aspect ratio) whose estimate, one frame at a
+    time (``kept``: see ``frame_memory_bytes``), fits in ``limit_bytes``; (0, 0) where not
+    even the fixed cost fits."""
+    fixed = KEPT_FIXED_BYTES if kept else FIXED_BYTES
+    pixels = (limit_bytes - fixed) / (KEPT_BYTES_PER_PIXEL if kept else BYTES_PER_PIXEL)
     if pixels < 1:
         return 0, 0
     scale = math.sqrt(pixels / (float(width_px) * float(height_px)))
     width, height = int(width_px * scale), int(height_px * scale)
-    while width > 0 and height > 0 and frame_memory_bytes(width, height) > limit_bytes:
+    while width > 0 and height > 0 and frame_memory_bytes(width, height, kept=kept) > limit_bytes:
         width, height = width - 1, height - 1  # rounding at the edge
     return max(width, 0), max(height, 0)
 
 
 def check_frame_memory(
-    width_px: int, height_px: int, limit_bytes: float | None = None, environ: dict | None = None
+    width_px: int,
+    height_px: int,
+    limit_bytes: float | None = None,
+    environ: dict | None = None,
+    kept: bool = False,
 ) -> None:
-    """Refuse a frame size whose estimated run memory is more than the machine has.
+    """Refuse a frame size whose estimated memory, one frame at a time, is more than the
+    machine has.
 
     limit_bytes: the memory to count on (default: ``memory_limit_bytes``, which reads
-    ``SATSIGHT_MEMORY_LIMIT_GB`` from ``environ``, default ``os.environ``).
+    ``SATSIGHT_MEMORY_LIMIT_GB`` from ``environ``, default ``os.environ``). kept: the
+    estimate of a process that keeps Dr.Jit's buffers between frames (``frame_memory_bytes``).
     """
     if limit_bytes is None:
         limit_bytes = memory_limit_bytes(environ)
         if limit_bytes is None:  # "off", or nothing readable: no check
             return
-    need = frame_memory_bytes(width_px, height_px)
+    need = frame_memory_bytes(width_px, height_px, kept=kept)
     if need <= limit_bytes:
         return
-    width, height = largest_frame_px(width_px, height_px, limit_bytes)
+    width, height = largest_frame_px(width_px, height_px, limit_bytes, kept)
     fits = (
         f"the largest frame of this shape that fits is {width} x {height} px"
         if width and height
         else "no frame fits"
     )
+    fixed, per_pixel = (
+        (KEPT_FIXED_BYTES, KEPT_BYTES_PER_PIXEL) if kept else (FIXED_BYTES, BYTES_PER_PIXEL)
+    )
     raise SatsightError(
         f"camera.width_px x camera.height_px = {width_px} x {height_px} px needs about "
-        f"{need / _GB:.1f} GB of memory ({FIXED_BYTES / _GB:.2f} GB + "
-        f"{BYTES_PER_PIXEL:.0f} bytes a pixel, measured), but {limit_bytes / _GB:.1f} GB is "
+        f"{need / _GB:.1f} GB of memory ({fixed / _GB:.2f} GB + "
+        f"{per_pixel:.0f} bytes a pixel, measured), but {limit_bytes / _GB:.1f} GB is "
         f"available; {fits}: lower camera.width_px and camera.height_px (or render on a "
         f"machine with more memory; {MEMORY_LIMIT_VARIABLE}=<GB> sets the memory to count "
         "on, 'off' skips this check)"

@@ -166,13 +166,22 @@ class FrameEngine:
     (one ``generate`` run, or one distributed worker) builds them once.
     """
 
-    def __init__(self, scenario: Scenario, normals: bool | str | None = None):
+    def __init__(
+        self,
+        scenario: Scenario,
+        normals: bool | str | None = None,
+        keeps_buffers: bool = True,
+    ):
         """normals: render the normals image (``RadianceImage.normals_cam``): float32
         (True), float16 (``"half"``) or not at all (False); None: in float16 when the
         outputs write it (its file holds half floats), else not at all (a 4096 x 4112
-        frame's normals are 0.1 GB in float16, 0.2 GB in float32)."""
+        frame's normals are 0.1 GB in float16, 0.2 GB in float32). keeps_buffers: the
+        frame-size check counts the memory of a process that keeps Dr.Jit's buffers between
+        frames (the Python interface, a Dask worker); False for a local run, which hands
+        them back when it must (``satsight.frame_memory``)."""
         camera = scenario.camera.build()
-        check_frame_memory(camera.width_px, camera.height_px)  # before the mesh and renderer
+        # Before the mesh and the renderer.
+        check_frame_memory(camera.width_px, camera.height_px, kept=keeps_buffers)
         self.scenario = scenario
         self.mesh = scenario.target.build(scenario.sun.band_nm)
         self.keypoints_body_m = target_keypoints_body_m(

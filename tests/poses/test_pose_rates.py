@@ -122,10 +122,16 @@ def test_poses_at_many_offsets_are_those_at_each(fly_by) -> None:
     for k in (0, len(fly_by) // 2, len(fly_by) - 1):
         R, t = poses_at_offsets(fly_by, k, offsets)
         assert R.shape == (17, 3, 3) and t.shape == (17, 3)
+        R0 = matrix_from_quaternion(fly_by.q_cam_from_body[k])
         for i, tau in enumerate(offsets):
+            # The module's formula, with scipy's exponential map.
+            turn_cam = Rotation.from_rotvec(-fly_by.omega_cam_rad_s[k] * tau).as_matrix()
+            turn_body = Rotation.from_rotvec(fly_by.omega_body_rad_s[k] * tau).as_matrix()
+            np.testing.assert_allclose(R[i], turn_cam @ R0 @ turn_body, rtol=0, atol=1e-14)
+            t_expected = fly_by.t_cam_from_body_m[k] + fly_by.t_dot_cam_from_body_m_s[k] * tau
+            np.testing.assert_allclose(t[i], t_expected, rtol=1e-15, atol=1e-12)
             R_one, t_one = pose_at_offset(fly_by, k, tau)
-            np.testing.assert_allclose(R[i], R_one, rtol=0, atol=1e-15)
-            np.testing.assert_allclose(t[i], t_one, rtol=0, atol=1e-9)
+            assert np.array_equal(R_one, R[i]) and np.array_equal(t_one, t[i])
         assert np.array_equal(R[8], matrix_from_quaternion(fly_by.q_cam_from_body[k]))  # tau 0
 
 

@@ -405,6 +405,11 @@ def test_a_memory_limit_makes_frames_one_at_a_time_with_the_same_bytes(
                              "--memory-gb", "0", cwd=tmp_path)  # fmt: skip
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "--memory-gb" in result.stderr and not (tmp_path / "bad").exists()
+    for bad in ("nan", "inf"):
+        result = invoke_satsight("generate", str(scenario_file), "--out", str(tmp_path / "bad"),
+                                 "--memory-gb", bad, cwd=tmp_path)  # fmt: skip
+        assert result.returncode == 2 and "Traceback" not in result.stderr, bad
+        assert "not a finite number of GB" in result.stderr and not (tmp_path / "bad").exists()
 
 
 def test_one_cpu_gives_the_same_bytes(tmp_path: Path, scenario_file: Path, reference_hashes):

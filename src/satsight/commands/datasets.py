@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from collections.abc import Iterator
@@ -180,6 +181,10 @@ def generate(
         from satsight.run.scheduler_address import scheduler_address
 
         scheduler = scheduler_address(scheduler)  # at once, before the scenario loads
+    if memory_gb is not None and not math.isfinite(memory_gb):
+        raise click.BadParameter(
+            f"{memory_gb} is not a finite number of GB", param_hint="--memory-gb"
+        )
     with _memory_limit(memory_gb):
         _generate(config, out_dir, overwrite, resume, shard, workers, scheduler, outputs, crop_px)
 

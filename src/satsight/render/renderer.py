@@ -501,9 +501,12 @@ class Renderer:
         return radiance, labels
 
     def _normals_type(self, normals: bool | str):
-        """The flat array type of the normals image: Float, or its float16 for ``"half"``."""
+        """The flat array type of the normals image: Float (True), or its float16 for
+        ``"half"``."""
         if normals == "half":
             return self._dr.float16_array_t(self._mi.Float)
+        if normals is not True:
+            raise ValueError(f"normals must be True, False or 'half', got {normals!r}")
         return self._mi.Float
 
     def _bodies_outside_box(self, frame: FrameValues, box: tuple, n_pix: int, radiance, labels):

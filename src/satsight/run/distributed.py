@@ -29,7 +29,7 @@ from pathlib import Path
 from satsight.config.scenario import parse_scenario
 from satsight.dataset.manifest import scenario_sha256
 from satsight.errors import SatsightError
-from satsight.frame_memory import FIXED_BYTES, memory_limit_bytes
+from satsight.frame_memory import frame_memory_bytes, memory_limit_bytes
 from satsight.render.backend import machine_cores
 from satsight.run.scheduler_address import CONNECT_TIMEOUT_S, probe_scheduler, scheduler_address
 
@@ -37,11 +37,6 @@ log = logging.getLogger(__name__)
 
 # Frames queued per worker beyond the one it renders, so no worker waits for the client.
 _QUEUED_PER_WORKER = 2
-#: Peak memory of a worker process per pixel of the frame, bytes, beyond
-#: ``frame_memory.FIXED_BYTES``: one frame at a time (measured with a 1-worker LocalCluster,
-#: example scenario, all outputs: peak RSS 0.64 GB at 128^2 px, 0.92 GB at 2048^2, 1.87 GB
-#: at 4096^2, i.e. 69-73 bytes a pixel).
-WORKER_BYTES_PER_PIXEL = 80.0
 #: Cores one process keeps busy (``local_workers``).
 CORES_PER_PROCESS = 2
 #: Times a frame lost with its worker (or with the scattered scenario) is submitted again.
@@ -158,9 +153,10 @@ def local_workers(requested: int, cores: int | None = None) -> tuple[int | None,
 
 def worker_memory_bytes(width_px: int, height_px: int) -> float:
     """Estimated peak memory (bytes) of one worker process rendering width x height px
-    frames: the run's fixed cost and one frame's buffers (a worker renders one frame at
-    a time)."""
-    return FIXED_BYTES + WORKER_BYTES_PER_PIXEL * float(width_px) * float(height_px)
+    frames: one frame at a time, Dr.Jit's buffers kept (``frame_memory.frame_memory_bytes``
+    with ``kept``; a 1-worker LocalCluster, example scenario, all outputs, peaked at 0.64 GB
+    at 128^2 px, 0.92 GB at 2048^2, 1.87 GB at 4096^2)."""
+    return frame_memory_bytes(width_px, height_px, kept=True)
 
 
 def _probe_name(token: str, worker: str) -> str:

@@ -21,6 +21,7 @@ from satsight.dataset.lock import WriterLock
 from satsight.dataset.manifest import finalize_dataset
 from satsight.dataset.reader import COMPLETE_NAME
 from satsight.dataset.staging import check_dataset_folder
+from satsight.frame_memory import PIPELINED_FRAMES, frames_in_flight
 from satsight.pipeline import FrameEngine
 from satsight.run.commit_table import CommitTable, committed_frames
 from satsight.run.dataset_folder import (
@@ -82,7 +83,11 @@ def generate_dataset(
     out_dir = Path(out_dir)
     stop = stop or StopFlag()
     check_dataset_folder(out_dir, overwrite, resume)  # before the mesh, renderer and stars
-    engine = FrameEngine(scenario)
+    # Frames in flight from the memory available before anything is loaded (the estimate
+    # holds the run's fixed cost).
+    camera = scenario.camera.build()
+    in_flight, why_one = frames_in_flight(camera.width_px, camera.height_px)
+    engine = FrameEngine(scenario, keeps_buffers=False)
     engine.load_star_catalogue()  # fails here, before anything is written
     manifest = dataset_manifest(engine, shard)
     frames = (shard or Shard(0, 1)).frames(engine.frame_count)
@@ -103,8 +108,10 @@ def generate_dataset(
             frame_px = (engine.camera.width_px, engine.camera.height_px)
             client = stack.enter_context(dask_client(workers, scheduler, out_dir, frame_px))
         complete = prepare_folder(out_dir, manifest, scenario, overwrite, resume)
+        if client is None and why_one is not None:
+            log.warning("%s", why_one)
         _render_missing_frames(engine, out_dir, manifest, shard or Shard(0, 1), client, summary,
-                               stop, on_frame_done, complete)  # fmt: skip
+                               stop, on_frame_done, complete, in_flight)  # fmt: skip
     summary.total_seconds = time.perf_counter() - started
     return summary
 
@@ -119,10 +126,12 @@ def _render_missing_frames(
     stop: StopFlag,
     on_frame_done: ProgressCallback | None,
     complete: bool = False,
+    in_flight: int = PIPELINED_FRAMES,
 ) -> None:
     """Commit every frame of ``shard`` not yet committed in ``out_dir`` (or whose files are
     missing or changed), then close the dataset (unless the run was stopped). complete:
-    ``out_dir`` is closed already; it is left untouched when every file is intact."""
+    ``out_dir`` is closed already; it is left untouched when every file is intact.
+    in_flight: frames in flight when they are rendered in this process (``run_local``)."""
     frames = shard.frames(engine.frame_count)
     table = CommitTable(shard, engine.frame_count)
     damaged = committed_frames(out_dir, table)
@@ -151,7 +160,7 @@ def _render_missing_frames(
                 on_frame_done(table.count, len(frames))
 
         if client is None:
-            run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds)
+            run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds, in_flight)
         else:
             from satsight.run.distributed import run_distributed
 

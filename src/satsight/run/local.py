@@ -46,9 +46,10 @@ def run_local(
 
     in_flight: frames rendered but not yet committed (None: as many as the memory holds,
     ``satsight.frame_memory.frames_in_flight``). With 1, each frame is rendered, sensed
-    and written before the next (the renderer then keeps all its threads); the renderer's
-    freed buffers go back to the system before its sensor stage, and the heap freed by the
-    sensor and the writer before the next render: the least memory, at some speed."""
+    and written on this thread before the next (the renderer then keeps all its threads);
+    the renderer's freed buffers go back to the system before its sensor stage, and the
+    heap freed by the sensor and the writer before the next render: the least memory, at
+    some speed."""
     if in_flight is None:
         in_flight, why = frames_in_flight(engine.camera.width_px, engine.camera.height_px)
         if why is not None:
@@ -63,11 +64,13 @@ def run_local(
     ):
         pending: deque = deque()
 
-        def commit_oldest() -> None:
-            record, stage = pending.popleft().result()
+        def record_and_commit(record: dict, stage: dict[str, float]) -> None:
             for name, seconds in stage.items():
                 times.setdefault(name, []).append(seconds)
             commit(record)
+
+        def commit_oldest() -> None:
+            record_and_commit(*pending.popleft().result())
 
         def sense_then_write(sensed_future) -> tuple[dict, dict[str, float]]:
             return write_frame(engine, root, sensed_future.result(), encoders)
@@ -79,15 +82,20 @@ def run_local(
                 t0 = time.perf_counter()
                 frame = engine.render(frame_index)
                 times.setdefault("render", []).append(time.perf_counter() - t0)
-                if in_flight == 1:
-                    release_render_memory(variant)
+                if in_flight == 1:  # each stage in turn, on this thread
+                    release_render_memory(variant)  # the render's temporaries
+                    sensed = sense_frame(engine, frame)
+                    del frame
+                    record, stage = write_frame(engine, root, sensed, encoders)
+                    del sensed
+                    record_and_commit(record, stage)
+                    return_freed_heap()  # what the sensor and the files left in the heap
+                    continue
                 sensed = sensor.submit(sense_frame, engine, frame)
                 pending.append(writer.submit(sense_then_write, sensed))
                 del frame, sensed
                 while len(pending) >= in_flight:
                     commit_oldest()
-                if in_flight == 1:
-                    return_freed_heap()
             while pending:
                 commit_oldest()
         except BaseException:

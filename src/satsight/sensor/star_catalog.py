@@ -236,7 +236,10 @@ class StarCatalog:
         per-frame field-of-view test then costs a few products instead of four
         trigonometric passes over every star: 1 ms instead of 13 for the V <= 9 stars)."""
         cos_dec = np.cos(self.dec_rad)
-        return cos_dec * np.cos(self.ra_rad), cos_dec * np.sin(self.ra_rad), np.sin(self.dec_rad)
+        unit = (cos_dec * np.cos(self.ra_rad), cos_dec * np.sin(self.ra_rad), np.sin(self.dec_rad))
+        for component in unit:  # shared with the views of this catalogue: read-only
+            component.setflags(write=False)
+        return unit
 
     def take(self, index: np.ndarray | slice) -> StarCatalog:
         """The stars ``index`` (integer indices, a boolean mask or a slice), as a catalogue."""
