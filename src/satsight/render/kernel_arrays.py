@@ -4,7 +4,7 @@ Dr.Jit maps a NumPy array's memory instead of copying it, and a kernel that read
 array element by element is compiled for its alignment: 64 bytes or not, which for arrays
 made afresh each frame changes from frame to frame (NumPy's allocations are 16-byte
 aligned). Each alignment then compiles kernels of its own (0.1-0.5 s each on the CPU, and
-as many again cached on disk). An array gathered once into memory of Dr.Jit's own is
+as many again cached on disk). An array copied once into memory of Dr.Jit's own is
 always aligned, so the frame's kernels are the same every frame.
 """
 
