@@ -240,7 +240,16 @@ def test_resume_of_a_complete_dataset_changes_nothing(tmp_path: Path, reference:
     assert file_hashes(out) == before
 
 
-def test_a_stop_flag_ends_the_run_after_the_frame_in_flight(tmp_path: Path) -> None:
+@pytest.mark.parametrize("in_flight", [1, 2])
+def test_a_stop_flag_ends_the_run_after_the_frame_in_flight(
+    tmp_path: Path, reference_hashes, monkeypatch, in_flight: int
+) -> None:
+    """Stopped after its second commit, a run commits the frames in flight (none more with
+    one frame at a time) and stops; --resume finishes it with the bytes of an
+    uninterrupted run."""
+    from satsight.run import generation
+
+    monkeypatch.setattr(generation, "frames_in_flight", lambda width, height: (in_flight, None))
     stop = StopFlag()
 
     def on_frame_done(done: int, total: int) -> None:
@@ -252,8 +261,13 @@ def test_a_stop_flag_ends_the_run_after_the_frame_in_flight(tmp_path: Path) -> N
     )
     assert summary.interrupted and not summary.complete
     # The frame rendering when the flag was set, and the one being finished, commit.
-    assert 2 <= summary.rendered <= 2 + 2
+    assert 2 <= summary.rendered <= 2 + in_flight
+    if in_flight == 1:
+        assert summary.rendered == 2
     assert not (tmp_path / "d" / "complete.json").exists()
+    resumed = generate_dataset(parse_scenario(scenario_dict()), tmp_path / "d", resume=True)
+    assert resumed.complete and resumed.rendered == FRAME_COUNT - summary.rendered
+    assert file_hashes(tmp_path / "d") == reference_hashes
 
 
 def test_disk_full_names_the_path_keeps_committed_frames_and_resume_finishes(
