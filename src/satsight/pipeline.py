@@ -114,7 +114,7 @@ def expose_frame(
     mask = image.object_mask
     if exposure_s is None:
         exposure_s = sensor.exposure_time_s(irradiance, mask)
-    regions = exposure_regions(mask, image.background_mask())
+    regions = exposure_regions(mask, image.background_id)
     # The regions' levels before the stars are added to the focal plane.
     fills = {
         name: sensor.region_fill(irradiance, exposure_s, where) for name, where in regions.items()
@@ -132,9 +132,11 @@ def expose_frame(
     labels = dn_image.labels()
     labels["regions"] = {
         name: {
-            "pixel_count": int(np.count_nonzero(where)),
+            "pixel_count": 0 if where is None else int(np.count_nonzero(where)),
             "fill_fraction_p99": fills[name],
-            "saturated_pixel_count": int(np.count_nonzero(saturated & where)),
+            "saturated_pixel_count": 0
+            if where is None
+            else int(np.count_nonzero(saturated & where)),
         }
         for name, where in regions.items()
     }

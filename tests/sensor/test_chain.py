@@ -438,3 +438,9 @@ def test_exposure_labels_tell_the_target_and_a_bright_earth_apart() -> None:
     saturated = chain.saturated(dn)
     assert not (saturated & regions["target"]).any()
     assert np.count_nonzero(saturated & regions["earth"]) == np.count_nonzero(background == 1)
+    # Without a body in view (background None) the Earth and the Moon are empty regions,
+    # with no mask made, and no fill.
+    empty = exposure_regions(target, None)
+    assert empty["target"] is target and empty["earth"] is None and empty["moon"] is None
+    assert chain.region_fill(irradiance, t, None) is None
+    assert chain.region_fill(irradiance, t, np.zeros_like(target)) is None

@@ -93,10 +93,14 @@ EXPOSURE_SAMPLE_PIXELS = 1 << 20
 REGION_FILL_PERCENTILE = 99.0
 
 
-def exposure_regions(object_mask: np.ndarray, background_mask: np.ndarray) -> dict:
+def exposure_regions(object_mask: np.ndarray, background_mask: np.ndarray | None) -> dict:
     """The parts of a frame whose exposure the labels report apart: {"target", "earth",
-    "moon": (H, W) bool}, from the object mask and ``RadianceImage.background_mask`` (0 space,
-    1 the Earth, 2 the Moon behind the target)."""
+    "moon": (H, W) bool, or None where the region is empty}, from the object mask and
+    ``RadianceImage.background_id`` (0 space, 1 the Earth, 2 the Moon behind the target;
+    None when no body is in view: the Earth and the Moon are then empty, and no full-frame
+    mask is made for them)."""
+    if background_mask is None:
+        return {"target": object_mask, "earth": None, "moon": None}
     return {"target": object_mask, "earth": background_mask == 1, "moon": background_mask == 2}
 
 
@@ -366,12 +370,14 @@ class SensorChain:
         return float(np.clip(t * self.exposure_factor, rule.min_time_s, rule.max_time_s))
 
     def region_fill(
-        self, irradiance_w_m2: np.ndarray, exposure_time_s: float, region: np.ndarray
+        self, irradiance_w_m2: np.ndarray, exposure_time_s: float, region: np.ndarray | None
     ) -> float | None:
         """The ``REGION_FILL_PERCENTILE`` percentile of the mean signal of the pixels in
         ``region`` ((H, W) bool), as a fraction of full well: electrons from the irradiance
         and the dark current over the exposure, before noise, fixed pattern and the well's
-        limit (so above 1 where the region saturates). None for an empty region."""
+        limit (so above 1 where the region saturates). None for an empty region (or None)."""
+        if region is None:
+            return None
         level = _percentile_of(irradiance_w_m2[region], REGION_FILL_PERCENTILE)
         if level is None:
             return None
