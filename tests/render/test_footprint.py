@@ -256,3 +256,55 @@ def test_the_detector_gets_a_small_plates_signal_through_the_optics(llvm_variant
         )
         focal = chain.focal_plane_irradiance_w_m2(image).sum(dtype=np.float64)
         assert focal / (L_PLATE * per_radiance * area_px2) == pytest.approx(1.0, abs=0.015)
+
+
+@pytest.mark.parametrize("samples_per_pixel", [1, 4])
+@pytest.mark.parametrize("earth_behind", [False, True])
+def test_a_frame_with_a_grid_traces_only_labels_and_bodies_for_its_pixels(
+    llvm_variant, monkeypatch, samples_per_pixel, earth_behind
+):
+    """With a footprint grid, the frame's own passes leave out the light of the target's
+    surfaces (the grid's pixels, the only ones that can see the target, get the grid's
+    radiance): the bytes are those of a render that shades every pass, the Earth behind
+    the target included; the path tracer runs only on the grid's cells."""
+    from satsight.lighting.scene_bodies import earth_body
+    from satsight.render.settings import RenderSettings
+
+    mesh = generate_satellite("two_wings", seed=2)
+    settings = RenderSettings(
+        bounces=1, environment="unshadowed", samples_per_pixel=samples_per_pixel
+    )
+    renderer = Renderer(mesh, settings, llvm_variant)
+    camera = PinholeCamera.wide_field().with_size(160, 120)
+    direction = np.array([0.5, 0.3, 0.81]) / np.linalg.norm([0.5, 0.3, 0.81])
+    camera_body = mesh.center_m + 15e3 * direction  # about 30 px across
+    pose = look_at_cam_from_body(camera_body, mesh.center_m)
+    sun = np.array([0.3, -0.4, 0.866])
+    light = LightField.sun_only(sun, E_SUN_W_M2)
+    if earth_behind:  # the camera 500 km above a sphere behind the target
+        earth = earth_body(camera_body - 6_871e3 * direction, np.eye(3), 0.3, sun, E_SUN_W_M2,
+                           shape="sphere")  # fmt: skip
+        light = LightField(sun, E_SUN_W_M2, np.zeros((25, 3)), bodies=(earth,))
+    traced = []
+    tracer = renderer._path_tracer
+    original_trace = type(tracer).trace.__get__(tracer)
+    monkeypatch.setattr(tracer, "trace", lambda *a: traced.append(1) or original_trace(*a))
+    image = renderer.render(camera, pose, light, seed=3, margin_px=4)
+    assert image.footprint is not None
+    grid_traces = len(traced)
+    original_passes = Renderer._radiance_passes.__get__(renderer)
+    monkeypatch.setattr(
+        renderer,
+        "_radiance_passes",
+        lambda *a, **k: original_passes(*a, **{**k, "shade": True}),
+    )
+    traced.clear()
+    shaded = renderer.render(camera, pose, light, seed=3, margin_px=4)
+    assert len(traced) > grid_traces  # the frame's passes traced paths only here
+    assert np.array_equal(image.radiance_w_m2_sr, shaded.radiance_w_m2_sr)
+    assert np.array_equal(image.margin_radiance_w_m2_sr, shaded.margin_radiance_w_m2_sr)
+    for name in ("depth_m", "part_id", "normals_cam", "background_id"):
+        assert np.array_equal(getattr(image, name), getattr(shaded, name)), name
+    assert image.object_mask.sum() > 20
+    if earth_behind:
+        assert (image.background_mask() == 1).sum() > 1000

@@ -182,8 +182,21 @@ class Renderer:
         box = None
         if not frame.bodies_in_view or self.settings.passes == 1:
             box = self._target_box_px(camera, cam_from_body)
+        grid = None
+        if self.settings.integrate_footprint:
+            grid = plan_footprint(
+                camera,
+                cam_from_body,
+                self.mesh.box_keypoints_body_m[:8],
+                self.mesh.center_m,
+                self.mesh.bounding_radius_m,
+                self.settings.passes,
+            )
+        # With a footprint grid, the pixels that can see the target are the grid's, whose
+        # radiance the grid replaces: the frame's passes then trace the labels and the
+        # bodies behind the target, not the light the target's surfaces send.
         radiance, labels = self._radiance_passes(
-            frame, n_pix, with_labels=True, box=box, normals=normals
+            frame, n_pix, with_labels=True, box=box, normals=normals, shade=grid is None
         )
         depth, part_id, normals_image, background = labels
         part_pairs = self._pack_uint16_pairs(part_id)
@@ -198,16 +211,6 @@ class Renderer:
                 ring_count = len(margin_pixels_xy(width, height, margin_px)[0])
                 margin_radiance = np.zeros((ring_count, 3), dtype=np.float32)
         radiance_w_m2_sr = radiance.numpy().reshape(height, width, 3)
-        grid = None
-        if self.settings.integrate_footprint:
-            grid = plan_footprint(
-                camera,
-                cam_from_body,
-                self.mesh.box_keypoints_body_m[:8],
-                self.mesh.center_m,
-                self.mesh.bounding_radius_m,
-                self.settings.passes,
-            )
         if grid is not None:
             if not radiance_w_m2_sr.flags.writeable:
                 radiance_w_m2_sr = radiance_w_m2_sr.copy()
@@ -421,6 +424,7 @@ class Renderer:
         with_labels: bool,
         box: tuple | None = None,
         normals: bool | str = True,
+        shade: bool = True,
     ) -> tuple:
         """Radiance (flat Float, three values per pixel) of pixels 0..n_pix-1 (positions
         from ``frame.pixel_position_px``), averaged over the settings' passes, and, with
@@ -428,7 +432,10 @@ class Renderer:
         box: (x0, y0, x1, y1, width), the only pixels of an image that passes of one path
         per pixel trace (``_target_box_px``); the others keep radiance and labels 0, but
         for the Earth and the Moon behind the target (``_bodies_outside_box``). normals:
-        whether the labels hold the normals image, and its type (``render``'s)."""
+        whether the labels hold the normals image, and its type (``render``'s). shade:
+        False leaves out the light of the target's surfaces (the paths past the camera
+        rays), for pixels whose radiance is replaced (``render``'s footprint grid); the
+        bodies behind the target are still drawn."""
         mi, dr = self._mi, self._dr
         s = self.settings
         camera_rays = self._camera_rays
@@ -472,7 +479,7 @@ class Renderer:
                     block = dr.arange(mi.UInt32, start, min(traced, start + _PIXELS_PER_BLOCK))
                     if box is not None:  # the box's pixels, row by row
                         block = (box_y0 + block // box_width) * width + box_x0 + block % box_width
-                    self._trace_lanes(frame, block, first_pass, block, radiance, labels)
+                    self._trace_lanes(frame, block, first_pass, block, radiance, labels, shade)
                     dr.eval(radiance, *labels)
                 if box is not None and frame.bodies_in_view:
                     self._bodies_outside_box(frame, box, n_pix, radiance, labels)
@@ -480,7 +487,7 @@ class Renderer:
                 lanes = dr.arange(mi.UInt32, n_pix * count)
                 pixel, pass_index = lanes // count, first_pass + lanes % count
                 lane_sum = dr.zeros(mi.Color3f, n_pix * count)
-                self._trace_lanes(frame, pixel, pass_index, lanes, lane_sum, ())
+                self._trace_lanes(frame, pixel, pass_index, lanes, lane_sum, (), shade)
                 dr.scatter_add(radiance, dr.block_sum(lane_sum, count), idx)
                 dr.eval(radiance)
             first += count
@@ -553,10 +560,13 @@ class Renderer:
                 dr.scatter(labels[3], mi.UInt8(body), pixel)
             dr.eval(radiance, *labels)
 
-    def _trace_lanes(self, frame: FrameValues, pixel, pass_index, lane, lane_sum, labels):
+    def _trace_lanes(
+        self, frame: FrameValues, pixel, pass_index, lane, lane_sum, labels, shade: bool = True
+    ):
         """Trace the paths of pixels ``pixel`` in passes ``pass_index`` and add their radiance
         to entries ``lane`` of ``lane_sum``; with ``labels`` (the frame's label images),
-        write the pixels' labels into them."""
+        write the pixels' labels into them. shade: False adds only the bodies seen past the
+        target, not the light of its surfaces (``_radiance_passes``)."""
         mi, dr = self._mi, self._dr
         s = self.settings
         camera_rays, tracer = self._camera_rays, self._path_tracer
@@ -569,6 +579,8 @@ class Renderer:
             dr.scatter_add(lane_sum, sky, path.lane, ~rays.hit, mode=dr.ReduceMode.NoConflicts)
         if labels:
             camera_rays.labels_into(frame, rays, pixel, labels)
+        if not shade:
+            return
         # Paths that leave the pixel's primary ray are shaded only where it hits the
         # target: a first kernel finds the hits, dr.compress lists them, the shading kernel
         # runs on those lanes alone (a target covering 5 % of the frame costs 5 %).
