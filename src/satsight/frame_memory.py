@@ -40,11 +40,11 @@ from satsight.errors import SatsightError
 FIXED_BYTES = 0.4e9
 #: Memory per pixel of a run that makes one frame at a time, bytes.
 BYTES_PER_PIXEL = 60.0
-# Each further frame in flight (two in flight: 0.63-0.64 GB + 82.3-94.6 bytes a pixel; the
-# RSSF example's 20 frames at 4096 x 4112 with all outputs, the Earth behind some, peaked
-# at 2.13-2.39 GB).
+# Each further frame in flight (two in flight, all outputs, after the grey Earth map and
+# the half-float normals: 0.48 GB + 94.3-96.2 bytes a pixel, two runs; the RSSF example's
+# 20 frames at 4096 x 4112 with all outputs, the Earth behind some, peaked at 2.13-2.19 GB).
 #: Memory of each further frame in flight whatever its size (threads' heaps), bytes.
-IN_FLIGHT_FIXED_BYTES = 0.3e9
+IN_FLIGHT_FIXED_BYTES = 0.1e9
 #: Memory per pixel of each further frame in flight, bytes.
 BYTES_PER_PIXEL_IN_FLIGHT = 50.0
 # A process that makes one frame at a time and keeps Dr.Jit's buffers between frames: the

@@ -407,7 +407,7 @@ def test_a_memory_limit_makes_frames_one_at_a_time_with_the_same_bytes(
     assert frame_memory.MEMORY_LIMIT_VARIABLE not in os.environ  # put back after the run
     # The variable does the same; with room for two, no line and nothing handed back.
     monkeypatch.setenv(frame_memory.MEMORY_LIMIT_VARIABLE, between)
-    assert local.frames_in_flight(WIDTH_PX, HEIGHT_PX)[0] == 1
+    assert frame_memory.frames_in_flight(WIDTH_PX, HEIGHT_PX)[0] == 1
     monkeypatch.setenv(frame_memory.MEMORY_LIMIT_VARIABLE, f"{two / 1e9 + 1e-6:.7f}")
     calls.clear()
     result = invoke_satsight("generate", str(scenario_file), "--out", str(tmp_path / "two"),

@@ -210,16 +210,15 @@ def bench(
     a local Dask cluster's speed-up); prints JSON."""
     if dataset_frames is not None and cluster_frames is not None:
         raise click.UsageError("choose --dataset or --cluster-scaling, not both")
+    cache = "warm" if warm_kernels else "cold"
     if cluster_frames is not None:
         from satsight.tools.dataset_benchmark import run_cluster_scaling
 
-        cache = "warm" if warm_kernels else "cold"
         click.echo(json.dumps(run_cluster_scaling(cluster_frames, kernel_cache=cache), indent=2))
         return
     if dataset_frames is not None:
         from satsight.tools.dataset_benchmark import run_dataset_benchmark
 
-        cache = "warm" if warm_kernels else "cold"
         click.echo(json.dumps(run_dataset_benchmark(dataset_frames, kernel_cache=cache), indent=2))
         return
     from satsight.tools.render_benchmark import parse_sizes_px, run_render_benchmark

@@ -3,7 +3,6 @@ keeps every core busy."""
 
 from __future__ import annotations
 
-import logging
 import time
 from collections import deque
 from collections.abc import Callable
@@ -13,7 +12,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from satsight.frame_memory import frames_in_flight, return_freed_heap
+from satsight.frame_memory import return_freed_heap
 from satsight.pipeline import FrameEngine
 from satsight.render.backend import release_render_memory, render_threads_beside_other_work
 from satsight.run.frame_stages import ENCODER_THREADS, sense_frame, write_frame
@@ -26,8 +25,6 @@ from satsight.run.interrupt import StopFlag
 # -> 0.141 / 0.143 s, its CPU use 161 -> 128 %.
 BLAS_THREADS = 1
 
-log = logging.getLogger(__name__)
-
 
 def run_local(
     engine: FrameEngine,
@@ -36,7 +33,7 @@ def run_local(
     commit: Callable[[dict], None],
     stop: StopFlag,
     times: dict[str, list[float]],
-    in_flight: int | None = None,
+    in_flight: int,
 ) -> None:
     """Render the frames of ``todo`` in this process as a three-stage pipeline: frame k+1
     renders while frame k goes through the sensor and then has its files encoded (on
@@ -44,16 +41,12 @@ def run_local(
     fewer than the machine's for its threads (``render_threads_beside_other_work``) and
     numpy's BLAS ``BLAS_THREADS``.
 
-    in_flight: frames rendered but not yet committed (None: as many as the memory holds,
+    in_flight: frames rendered but not yet committed (``generate_dataset`` takes it from
     ``satsight.frame_memory.frames_in_flight``). With 1, each frame is rendered, sensed
     and written on this thread before the next (the renderer then keeps all its threads);
     the renderer's freed buffers go back to the system before its sensor stage, and the
     heap freed by the sensor and the writer before the next render: the least memory, at
     some speed."""
-    if in_flight is None:
-        in_flight, why = frames_in_flight(engine.camera.width_px, engine.camera.height_px)
-        if why is not None:
-            log.warning("%s", why)
     variant = engine.renderer.variant
     with (
         render_threads_beside_other_work(variant) if in_flight > 1 else nullcontext(),
