@@ -5,6 +5,7 @@ target's body frame."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -30,6 +31,128 @@ def sun_irradiance_w_m2(scenario: Scenario, track: PoseTrack, index: int) -> flo
     return irradiance_at_distance_w_m2(at_1_au, track.sun_distance_m[index])
 
 
+# A frame's light is computed from its inputs in the body frame (the Sun's direction, the
+# Earth's and the Moon's centres, the Earth's orientation) put on a grid of 2^-32 of each
+# one's size (the power of two above 1 for directions and rotations, above the body's
+# distance for its centre): about 2e-10 relative, 0.05 mas for the Sun's direction, 2 mm
+# for the Earth's centre. Frames that share the target's state (an RSSF plan's frames at one
+# epoch) reach their body-frame inputs through their own camera rotations, which differ in
+# the last bits (1e-15 relative, measured); on the grid they are equal, bit for bit, but
+# where a value falls within that of a step's edge (about 1 in 10^5), so that such frames
+# share one light field (``FrameEngine`` keeps the last few). A frame's light stays a
+# function of its own plan entry alone: resumed and sharded datasets get the same bytes.
+# (The step is set by the size, not by the vector's norm: a unit vector's norm falls on
+# either side of 1 by an ulp, which would halve the step from frame to frame.)
+_GRID_BITS = 32
+
+
+def _on_grid(values: np.ndarray, size: float = 1.0) -> tuple[float, ...]:
+    """``values`` (flattened) rounded to multiples of 2^-32 of the power of two above
+    ``size`` (a power of two: the rounding is exact)."""
+    _, exponent = math.frexp(float(size))
+    grid = math.ldexp(1.0, exponent - _GRID_BITS)
+    values = np.asarray(values, dtype=np.float64).ravel()
+    return tuple((np.round(values / grid) * grid).tolist())
+
+
+@dataclasses.dataclass(frozen=True)
+class LightInputs:
+    """What a frame's light depends on beyond its scenario, in the body frame, on the grid
+    above (hashable: equal inputs give equal light).
+
+    sun_direction_body: from the target towards the Sun. irradiance_w_m2: the Sun's in-band
+    irradiance that lights the Earth and the Moon; at_target_w_m2: what reaches the target.
+    earth_center_body_m, moon_center_body_m: from the target to the bodies' centres (None
+    without an ``earth`` / ``moon`` section). R_body_from_earth_fixed: the Earth's fixed
+    frame's orientation, row-major (None without an ``earth`` section).
+    """
+
+    sun_direction_body: tuple[float, ...]
+    irradiance_w_m2: float
+    at_target_w_m2: float
+    earth_center_body_m: tuple[float, ...] | None
+    R_body_from_earth_fixed: tuple[float, ...] | None
+    moon_center_body_m: tuple[float, ...] | None
+
+
+def frame_light_inputs(
+    scenario: Scenario,
+    track: PoseTrack,
+    index: int,
+    cam_from_body: RigidTransform | None = None,
+    sun_direction_cam: np.ndarray | None = None,
+    irradiance_scale: float = 1.0,
+    earth_direction_cam: np.ndarray | None = None,
+) -> LightInputs:
+    """The inputs of frame ``index``'s light (``frame_light``'s arguments)."""
+    cam_from_body = track.cam_from_body(index) if cam_from_body is None else cam_from_body
+    R_body_from_cam = cam_from_body.R_a_from_b.T
+    irradiance = sun_irradiance_w_m2(scenario, track, index) * irradiance_scale
+    if sun_direction_cam is None:
+        sun_direction_cam = track.sun_from_target_cam[index]
+    if earth_direction_cam is None:
+        earth_direction_cam = track.earth_from_target_cam[index]
+
+    def centre(direction_cam: np.ndarray, distance_m: float) -> tuple[float, ...]:
+        return _on_grid(R_body_from_cam @ (direction_cam * distance_m), distance_m)
+
+    earth = scenario.earth is not None
+    return LightInputs(
+        sun_direction_body=_on_grid(R_body_from_cam @ sun_direction_cam),
+        irradiance_w_m2=float(irradiance),
+        at_target_w_m2=float(irradiance * float(track.sunlit_fraction[index])),
+        earth_center_body_m=centre(earth_direction_cam, track.earth_distance_m[index])
+        if earth
+        else None,
+        R_body_from_earth_fixed=_on_grid(R_body_from_cam @ _R_cam_from_earth_fixed(track, index))
+        if earth
+        else None,
+        moon_center_body_m=centre(track.moon_from_target_cam[index], track.moon_distance_m[index])
+        if scenario.moon is not None
+        else None,
+    )
+
+
+def light_from_inputs(scenario: Scenario, inputs: LightInputs) -> LightField:
+    """The light at the target, body frame, from a frame's ``LightInputs``: the Sun, and the
+    Earth and the Moon of the scenario's ``earth`` / ``moon`` sections as bodies and as the
+    SH light field (``frame_light``)."""
+    earth, moon = scenario.earth, scenario.moon
+    sun_body = np.array(inputs.sun_direction_body)
+    irradiance = inputs.irradiance_w_m2
+    earth_center = None if earth is None else np.array(inputs.earth_center_body_m)
+    moon_center = None if moon is None else np.array(inputs.moon_center_body_m)
+    bodies = []
+    if earth is not None:
+        bodies.append(
+            earth_body(
+                earth_center,
+                np.array(inputs.R_body_from_earth_fixed).reshape(3, 3),
+                earth.albedo,
+                sun_body,
+                irradiance,
+                albedo_map=earth.albedo_map(),
+                shape=earth.shape,
+            )
+        )
+    # The SH field (environment: sh, unshadowed) projects the same Earth the renderer
+    # traces: its shape, orientation and albedo map.
+    light = environment_light_field(
+        sun_body,
+        irradiance,
+        earth_center_from_target_m=earth_center,
+        earth_albedo=EARTH_ALBEDO if earth is None else earth.albedo,
+        moon_center_from_target_m=moon_center,
+        moon_albedo=MOON_ALBEDO if moon is None else moon.albedo,
+        l_max=scenario.render.sh_order,
+        sun_irradiance_at_target_w_m2=inputs.at_target_w_m2,
+        earth=bodies[0] if bodies else None,
+    )
+    if moon is not None:
+        bodies.append(moon_body(moon_center, MOON_MEAN_RADIUS_M, moon.albedo, sun_body, irradiance))
+    return dataclasses.replace(light, bodies=tuple(bodies))
+
+
 def frame_light(
     scenario: Scenario,
     track: PoseTrack,
@@ -52,58 +175,14 @@ def frame_light(
     camera frame (``cam_from_body``, turned by its attitude jitter), the Sun's direction in
     that frame, a factor on the Sun's irradiance and the Earth's direction in that frame
     (moved behind the target); defaults: the plan's.
+
+    The same as ``light_from_inputs(scenario, frame_light_inputs(...))``.
     """
-    cam_from_body = track.cam_from_body(index) if cam_from_body is None else cam_from_body
-    R_body_from_cam = cam_from_body.R_a_from_b.T
-    irradiance = sun_irradiance_w_m2(scenario, track, index) * irradiance_scale
-    if sun_direction_cam is None:
-        sun_direction_cam = track.sun_from_target_cam[index]
-    sun_body = R_body_from_cam @ sun_direction_cam
-    at_target = irradiance * float(track.sunlit_fraction[index])
-
-    def center_body(direction_cam: np.ndarray, distance_m: float) -> np.ndarray:
-        return R_body_from_cam @ (direction_cam * distance_m)
-
-    earth, moon = scenario.earth, scenario.moon
-    if earth_direction_cam is None:
-        earth_direction_cam = track.earth_from_target_cam[index]
-    earth_center = (
-        None if earth is None else center_body(earth_direction_cam, track.earth_distance_m[index])
-    )
-    moon_center = (
-        None
-        if moon is None
-        else center_body(track.moon_from_target_cam[index], track.moon_distance_m[index])
-    )
-    bodies = []
-    if earth is not None:
-        bodies.append(
-            earth_body(
-                earth_center,
-                R_body_from_cam @ _R_cam_from_earth_fixed(track, index),
-                earth.albedo,
-                sun_body,
-                irradiance,
-                albedo_map=earth.albedo_map(),
-                shape=earth.shape,
-            )
-        )
-    # The SH field (environment: sh, unshadowed) projects the same Earth the renderer
-    # traces: its shape, orientation and albedo map.
-    light = environment_light_field(
-        sun_body,
-        irradiance,
-        earth_center_from_target_m=earth_center,
-        earth_albedo=EARTH_ALBEDO if earth is None else earth.albedo,
-        moon_center_from_target_m=moon_center,
-        moon_albedo=MOON_ALBEDO if moon is None else moon.albedo,
-        l_max=scenario.render.sh_order,
-        sun_irradiance_at_target_w_m2=at_target,
-        earth=bodies[0] if bodies else None,
-    )
-    if moon is not None:
-        bodies.append(moon_body(moon_center, MOON_MEAN_RADIUS_M, moon.albedo, sun_body, irradiance))
-    return dataclasses.replace(light, bodies=tuple(bodies))
+    inputs = frame_light_inputs(
+        scenario, track, index, cam_from_body, sun_direction_cam, irradiance_scale,
+        earth_direction_cam,
+    )  # fmt: skip
+    return light_from_inputs(scenario, inputs)
 
 
 def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:

@@ -7,6 +7,7 @@ runs it over a dataset and writes the files.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -18,7 +19,12 @@ from satsight.dataset.frame_files import OBJECT_FILE_KEYS, FrameArrays
 from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
 from satsight.errors import SatsightError
-from satsight.frame_light import frame_light, sun_irradiance_w_m2
+from satsight.frame_light import (
+    frame_light,
+    frame_light_inputs,
+    light_from_inputs,
+    sun_irradiance_w_m2,
+)
 from satsight.frame_memory import check_frame_memory
 from satsight.frame_scene import FrameView, frame_scene
 from satsight.frame_variation import FramePoses, FrameVariation
@@ -41,6 +47,10 @@ from satsight.scene.objects import SceneMesh
 from satsight.sensor.chain import DnImage, SensorChain, exposure_regions
 from satsight.sensor.frame_stars import add_frame_stars
 from satsight.sensor.photometry import frame_photometry
+
+# Distinct light fields a FrameEngine keeps (its frames' light at up to this many target
+# states: an exposure's sub-instants, or the epochs an RSSF plan may hold).
+LIGHT_CACHE_SIZE = 8
 
 
 def planned_frames(scenario: Scenario, mesh: TargetMesh) -> tuple[PoseTrack, np.ndarray]:
@@ -208,6 +218,12 @@ class FrameEngine:
         if normals is None:
             normals = "half" if "normals_exr" in scenario.outputs.file_keys() else False
         self.normals = normals
+        # The light of the last few distinct inputs: the frames of an RSSF plan share the
+        # target's state, so one light field (13 ms at 1024^2 with the Earth and the Moon)
+        # serves them all (``satsight.frame_light``).
+        self._light = functools.lru_cache(maxsize=LIGHT_CACHE_SIZE)(
+            functools.partial(light_from_inputs, scenario)
+        )
 
     def camera_mode(self, plan_index: int) -> str:
         """The camera mode of plan frame ``plan_index``: ``far`` when its range to the
@@ -259,7 +275,7 @@ class FrameEngine:
 
         def light_at(track: PoseTrack, i: int) -> LightField:
             if variation is None:
-                return frame_light(self.scenario, track, i)
+                return self._light(frame_light_inputs(self.scenario, track, i))
             return frame_light(
                 variation.light_scenario(draws),
                 track,
