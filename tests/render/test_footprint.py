@@ -193,6 +193,12 @@ def test_compose_conserves_flux_and_fills_the_rest_with_the_background():
     radiance = rng.uniform(0.0, 5.0, size=(n, 3))
     black = compose_pixels(grid, radiance, None)
     np.testing.assert_allclose(black.sum(axis=0), radiance.sum(axis=0) * h2, rtol=1e-12)
+    # Each pixel's cells summed one by one in their order: the same bits.
+    slot = np.searchsorted(grid.pixels, grid.pixel_index)
+    in_order = np.zeros((grid.pixels.size, 3))
+    for k in range(n):
+        in_order[slot[k]] += radiance[k]
+    np.testing.assert_array_equal(black, in_order * h2)
     # Cells that see the same background as the pixel centre leave the pixel at it.
     background = np.tile([[1.0, 2.0, 3.0]], (grid.pixels.size, 1))
     uniform = compose_pixels(grid, np.tile([[1.0, 2.0, 3.0]], (n, 1)), background)

@@ -203,8 +203,11 @@ def compose_pixels(
     black space) over the pixel area the cells do not cover."""
     cell_area = grid.spacing_px[0] * grid.spacing_px[1]
     slot = np.searchsorted(grid.pixels, grid.pixel_index)
-    total = np.zeros((grid.pixels.size, 3))
-    np.add.at(total, slot, np.asarray(sample_radiance, dtype=np.float64))
+    samples = np.asarray(sample_radiance, dtype=np.float64)
+    # Per channel, the cells' sums in their order (as np.add.at, at a tenth of its time).
+    total = np.stack(
+        [np.bincount(slot, samples[:, c], minlength=grid.pixels.size) for c in range(3)], axis=1
+    )
     covered = np.bincount(slot, minlength=grid.pixels.size) * cell_area
     values = total * cell_area
     if background is not None:
