@@ -31,21 +31,25 @@ def check_threads(threads: int | None) -> int:
     return int(threads)
 
 
-# One pool of each size per process, kept: a frame runs 4-6 batches of jobs, and starting
-# their threads each time cost 5 ms of a 20 ms sensor stage at 1024 x 1024 (measured).
-_pools: dict[tuple[int, int], ThreadPoolExecutor] = {}
-_pools_lock = threading.Lock()
+# Pools kept per calling thread (and process, and size): a frame runs 4-6 batches of jobs,
+# and starting their threads each time cost 5 ms of a 20 ms sensor stage at 1024 x 1024
+# (measured). One pool shared by the renderer's thread (the auto exposure's blur) and the
+# sensor's made each wait for the other's jobs: 29 -> 45 ms a sensor stage in the pipeline.
+# A thread's pools go with it (their threads end when the pool is collected).
+_local = threading.local()
 _in_job = threading.local()
 
 
 def _pool(threads: int) -> ThreadPoolExecutor:
-    """This process's pool of ``threads`` threads (a new one in a forked child)."""
+    """The calling thread's pool of ``threads`` threads (a new one in a forked child)."""
+    pools = getattr(_local, "pools", None)
+    if pools is None:
+        pools = _local.pools = {}
     key = (os.getpid(), threads)
-    with _pools_lock:
-        pool = _pools.get(key)
-        if pool is None:
-            pool = _pools[key] = ThreadPoolExecutor(threads, thread_name_prefix="satsight-jobs")
-        return pool
+    pool = pools.get(key)
+    if pool is None:
+        pool = pools[key] = ThreadPoolExecutor(threads, thread_name_prefix="satsight-jobs")
+    return pool
 
 
 def run_jobs(job: Callable[[int], object], count: int, threads: int) -> list:

@@ -1,0 +1,75 @@
+"""The sensor's jobs: results in job order on kept pools, one per calling thread, jobs
+started from a job run in place, errors passed on."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from satsight.errors import SatsightError
+from satsight.sensor.threads import check_threads, run_jobs
+
+
+def _job_threads(count: int, threads: int) -> list[int]:
+    return run_jobs(lambda i: threading.get_ident(), count, threads)
+
+
+def test_results_come_in_job_order_on_the_same_kept_threads() -> None:
+    assert run_jobs(lambda i: i * i, 7, 3) == [0, 1, 4, 9, 16, 25, 36]
+    first = set(_job_threads(12, 2))
+    assert threading.get_ident() not in first and 1 <= len(first) <= 2
+    assert set(_job_threads(12, 2)) <= first  # no new threads for the next batch
+
+
+def test_one_thread_or_one_job_runs_in_the_calling_thread() -> None:
+    me = threading.get_ident()
+    assert _job_threads(3, 1) == [me] * 3
+    assert _job_threads(1, 4) == [me]
+    assert run_jobs(lambda i: i, 0, 2) == []
+
+
+def test_each_calling_thread_has_its_own_pool() -> None:
+    # Two callers at once (the renderer's thread and the sensor's, in a run): neither waits
+    # for the other's jobs, and neither runs on the other's threads.
+    barrier = threading.Barrier(2)
+    seen: dict[str, set[int]] = {}
+
+    def caller(name: str) -> None:
+        barrier.wait()
+        seen[name] = set(_job_threads(8, 2))
+
+    callers = [threading.Thread(target=caller, args=(n,)) for n in ("a", "b")]
+    for t in callers:
+        t.start()
+    for t in callers:
+        t.join()
+    assert seen["a"] and seen["b"] and not seen["a"] & seen["b"]
+
+
+def test_jobs_started_from_a_job_run_on_its_thread() -> None:
+    def outer(i: int) -> tuple[int, set[int]]:
+        inner = set(_job_threads(4, 2))
+        return threading.get_ident(), inner
+
+    for ident, inner in run_jobs(outer, 4, 2):
+        assert inner == {ident}
+
+
+def test_a_failing_job_raises_in_the_caller() -> None:
+    def job(i: int) -> int:
+        if i == 3:
+            raise ValueError("job 3")
+        return i
+
+    with pytest.raises(ValueError, match="job 3"):
+        run_jobs(job, 6, 2)
+    assert run_jobs(lambda i: i, 4, 2) == [0, 1, 2, 3]  # the pool still works
+
+
+def test_thread_counts_are_checked() -> None:
+    assert check_threads(3) == 3
+    assert check_threads(None) >= 1
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(SatsightError, match="threads must be"):
+            check_threads(bad)
