@@ -14,7 +14,7 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
 from satsight.render.buffers import RadianceImage, margin_pixels_xy
-from satsight.sensor.chain import SensorChain, exposure_regions
+from satsight.sensor.chain import SensorChain, exposure_regions, mask_box, within_box
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
 from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.mtf import band_wavelengths_m
@@ -444,3 +444,35 @@ def test_exposure_labels_tell_the_target_and_a_bright_earth_apart() -> None:
     assert empty["target"] is target and empty["earth"] is None and empty["moon"] is None
     assert chain.region_fill(irradiance, t, None) is None
     assert chain.region_fill(irradiance, t, np.zeros_like(target)) is None
+
+
+def test_a_region_cut_to_its_box_gives_its_pixels_in_the_frames_order() -> None:
+    rng = np.random.default_rng(12)
+    image = rng.uniform(size=(64, 80)).astype(np.float32)
+    for mask in (
+        np.zeros((64, 80), bool),
+        rng.uniform(size=(64, 80)) > 0.999,  # a few scattered pixels
+        np.pad(rng.uniform(size=(9, 5)) > 0.3, ((20, 35), (40, 35))),  # a small blob
+        np.ones((64, 80), bool),
+    ):
+        box, inside = within_box(mask)
+        np.testing.assert_array_equal(image[box][inside], image[mask])
+        assert np.count_nonzero(inside) == np.count_nonzero(mask)
+        if mask.any():
+            rows, columns = mask_box(mask)
+            assert mask[rows.start].any() and mask[rows.stop - 1].any()
+            assert mask[:, columns.start].any() and mask[:, columns.stop - 1].any()
+            assert not mask[: rows.start].any() and not mask[:, columns.stop :].any()
+        else:
+            assert mask_box(mask) is None and inside.size == 0
+
+
+def test_the_object_mask_is_made_once_and_read_only() -> None:
+    image = _image(np.zeros((6, 7, 3), np.float32))
+    image = dataclasses.replace(image, part_id=np.array([[0, 1, 2, 3, 0, 0, 0]] * 6, np.uint16))
+    mask = image.object_mask
+    assert image.object_mask is mask and not mask.flags.writeable
+    np.testing.assert_array_equal(mask, image.part_id > 0)
+    # Other objects' parts (past the target's) are not the target.
+    others = dataclasses.replace(image, target_part_count=2)
+    np.testing.assert_array_equal(others.object_mask, (image.part_id > 0) & (image.part_id <= 2))

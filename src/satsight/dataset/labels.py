@@ -23,6 +23,7 @@ from satsight.frames.rigid import RigidTransform
 from satsight.lighting.light_field import SunLight
 from satsight.render.buffers import RadianceImage
 from satsight.scene.mesh import TargetMesh
+from satsight.sensor.chain import mask_box
 from satsight.vectors import angle_between_rad
 
 #: Keypoint depth tolerance: KEYPOINT_DEPTH_ATOL_M + KEYPOINT_DEPTH_RTOL * depth.
@@ -66,11 +67,11 @@ def keypoints_visible(
 
 def mask_bbox_xyxy_px(mask: np.ndarray) -> list[int] | None:
     """Tight box [x_min, y_min, x_max, y_max] (inclusive pixel indices) of a mask, or None."""
-    ys = np.flatnonzero(mask.any(axis=1))
-    if ys.size == 0:
+    box = mask_box(mask)
+    if box is None:
         return None
-    xs = np.flatnonzero(mask.any(axis=0))
-    return [int(xs[0]), int(ys[0]), int(xs[-1]), int(ys[-1])]
+    rows, columns = box
+    return [columns.start, rows.start, columns.stop - 1, rows.stop - 1]
 
 
 def _projected(points_px: np.ndarray) -> list:

@@ -104,6 +104,24 @@ def exposure_regions(object_mask: np.ndarray, background_mask: np.ndarray | None
     return {"target": object_mask, "earth": background_mask == 1, "moon": background_mask == 2}
 
 
+def mask_box(mask: np.ndarray) -> tuple[slice, slice] | None:
+    """(rows, columns) slices of the smallest box holding every True pixel of an (H, W)
+    mask, or None when it has none."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return None
+    columns = np.flatnonzero(mask[rows[0] : rows[-1] + 1].any(axis=0))  # the rows that hold it
+    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(columns[0]), int(columns[-1]) + 1)
+
+
+def within_box(mask: np.ndarray) -> tuple[tuple[slice, slice], np.ndarray]:
+    """(``mask_box``'s slices, empty for an empty mask; the mask within them): an image cut
+    to them and indexed by that mask gives the same pixels, in the same order, as the
+    whole image indexed by ``mask``, without a pass over the whole image."""
+    box = mask_box(mask) or (slice(0, 0), slice(0, 0))
+    return box, mask[box]
+
+
 def _percentile_of(values: np.ndarray, percentile: float) -> float | None:
     """The percentile of ``values``, over an evenly strided subset of at most
     ``EXPOSURE_SAMPLE_PIXELS`` of them (None when empty)."""
@@ -353,7 +371,8 @@ class SensorChain:
         rule = self.exposure
         if rule.mode == "fixed":
             return rule.time_s * self.exposure_factor
-        lit = irradiance_w_m2[object_mask]
+        box, inside = within_box(object_mask)
+        lit = irradiance_w_m2[box][inside]
         if lit.size > EXPOSURE_SAMPLE_PIXELS:
             lit = lit[:: -(-lit.size // EXPOSURE_SAMPLE_PIXELS)]
         level = _percentile_of(lit[lit > 0], rule.percentile)
