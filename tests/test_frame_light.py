@@ -3,7 +3,9 @@ target's state (an RSSF plan's frames at one epoch) share one light field, bit f
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -59,12 +61,12 @@ def _raw_inputs(scenario, track, i: int) -> dict[str, np.ndarray]:
 def test_rssf_frames_at_one_epoch_share_their_light_inputs(rssf) -> None:
     scenario, track = rssf
     assert len(set(track.epoch_utc)) == 1
-    inputs = {frame_light_inputs(scenario, track, i) for i in range(len(track))}
-    assert len(inputs) == 1
-    # Off the grid the frames' inputs differ in their last bits (their camera rotations).
-    raw = [_raw_inputs(scenario, track, i) for i in range(len(track))]
-    for name in raw[0]:
-        assert len({r[name].tobytes() for r in raw}) > 1, name
+    inputs = Counter(frame_light_inputs(scenario, track, i) for i in range(len(track)))
+    # One set of inputs (measured here: every frame); a value within 1e-15 of a step's edge
+    # (about 1 frame in 10^4) would give a frame a set of its own.
+    assert inputs.most_common(1)[0][1] >= len(track) - 1
+    # Equal inputs are equal bit for bit (no -0.0 beside +0.0), so equal light follows.
+    assert len({repr(key) for key in inputs}) == len(inputs)
 
 
 def test_inputs_on_the_grid_are_the_frames_own_within_half_a_step(rssf) -> None:
@@ -91,6 +93,9 @@ def test_grid_rounding_is_idempotent_and_keeps_zero() -> None:
         assert _on_grid(np.array(once), scale) == once
         assert np.abs(np.array(once) - values).max() <= 2.0**-32 * scale
     assert _on_grid(np.zeros(3)) == (0.0, 0.0, 0.0)
+    # A value that rounds to zero from below is +0.0, like one from above.
+    for tiny in (-1e-20, 1e-20, -0.0):
+        assert math.copysign(1.0, _on_grid(np.array([tiny]))[0]) == 1.0
 
 
 def test_light_from_the_grid_matches_the_light_from_the_raw_inputs(rssf) -> None:
@@ -136,7 +141,26 @@ def test_light_from_the_grid_matches_the_light_from_the_raw_inputs(rssf) -> None
 
 def test_engine_projects_one_light_field_for_the_frames_of_one_state() -> None:
     engine = FrameEngine(_rssf(frames=6, width_px=48))
-    frames = [engine.render(k) for k in range(3)]
-    assert frames[0].light is frames[1].light is frames[2].light
+    frames = [engine.render(k) for k in range(4)]
+    assert len({id(frame.light) for frame in frames}) <= 2
     info = engine._light.cache_info()
-    assert (info.misses, info.hits) == (1, 2)
+    assert info.misses <= 2 and info.misses + info.hits == 4
+
+
+def test_a_frame_renders_the_same_bytes_alone_and_after_others() -> None:
+    # The kept light field must not make a frame depend on the frames rendered before it.
+    scenario = _rssf(frames=6, width_px=48)
+    alone = FrameEngine(scenario).render(4)
+    engine = FrameEngine(scenario)
+    for k in (0, 1, 2, 3):
+        engine.render(k)
+    after = engine.render(4)
+    assert engine._light.cache_info().hits >= 3
+    for name in ("radiance_w_m2_sr", "depth_m", "part_id"):
+        assert getattr(alone.image, name).tobytes() == getattr(after.image, name).tobytes()
+    for alone_body, after_body in zip(alone.light.bodies, after.light.bodies, strict=True):
+        for field in dataclasses.fields(alone_body):
+            a, b = getattr(alone_body, field.name), getattr(after_body, field.name)
+            if isinstance(a, np.ndarray):
+                assert a.tobytes() == b.tobytes(), field.name
+    assert alone.light.sh_radiance_w_m2_sr.tobytes() == after.light.sh_radiance_w_m2_sr.tobytes()

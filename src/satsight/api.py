@@ -151,8 +151,9 @@ class Frame(_PoseLabels):
 
     @property
     def object_mask(self) -> np.ndarray:
-        """(H, W) bool: True where the ray through the pixel centre hits the target."""
-        return self.arrays.image.object_mask
+        """(H, W) bool: True where the ray through the pixel centre hits the target (a copy
+        of the frame's own mask, which is read-only)."""
+        return self.arrays.image.object_mask.copy()
 
     @property
     def normals_cam(self) -> np.ndarray:

@@ -34,15 +34,17 @@ def sun_irradiance_w_m2(scenario: Scenario, track: PoseTrack, index: int) -> flo
 # A frame's light is computed from its inputs in the body frame (the Sun's direction, the
 # Earth's and the Moon's centres, the Earth's orientation) put on a grid of 2^-32 of each
 # one's size (the power of two above 1 for directions and rotations, above the body's
-# distance for its centre): about 2e-10 relative, 0.05 mas for the Sun's direction, 2 mm
-# for the Earth's centre. Frames that share the target's state (an RSSF plan's frames at one
-# epoch) reach their body-frame inputs through their own camera rotations, which differ in
-# the last bits (1e-15 relative, measured); on the grid they are equal, bit for bit, but
-# where a value falls within that of a step's edge (about 1 in 10^5), so that such frames
-# share one light field (``FrameEngine`` keeps the last few). A frame's light stays a
-# function of its own plan entry alone: resumed and sharded datasets get the same bytes.
-# (The step is set by the size, not by the vector's norm: a unit vector's norm falls on
-# either side of 1 by an ulp, which would halve the step from frame to frame.)
+# distance for its centre): about 2e-10 relative; 0.05 mas for the Sun's direction, 2 mm
+# for the Earth's centre from low orbit, 16 mm from geostationary orbit. Frames that share
+# the target's state (an RSSF plan's frames at one epoch) reach their body-frame inputs
+# through their own camera rotations, which differ in the last bits (1e-15 relative,
+# measured); on the grid they are equal, bit for bit, so that such frames share one light
+# field (``FrameEngine`` keeps the last few), but where a value falls within that of a
+# step's edge (about 1 value in 10^5, 1 frame in 10^4), which costs one more light field.
+# A frame's light stays a function of its own plan entry alone: resumed and sharded
+# datasets get the same bytes. (The step is set by the size, not by the vector's norm: a
+# unit vector's norm falls on either side of 1 by an ulp, which would halve the step from
+# frame to frame.)
 _GRID_BITS = 32
 
 
@@ -52,7 +54,8 @@ def _on_grid(values: np.ndarray, size: float = 1.0) -> tuple[float, ...]:
     _, exponent = math.frexp(float(size))
     grid = math.ldexp(1.0, exponent - _GRID_BITS)
     values = np.asarray(values, dtype=np.float64).ravel()
-    return tuple((np.round(values / grid) * grid).tolist())
+    # + 0.0 makes -0.0 +0.0: the two compare (and hash) equal, so their bits must be too.
+    return tuple((np.round(values / grid) * grid + 0.0).tolist())
 
 
 @dataclasses.dataclass(frozen=True)

@@ -33,7 +33,7 @@ from satsight.lighting.light_field import LightField
 from satsight.poses.plan import frames_to_render, plan_track
 from satsight.poses.track import PoseTrack
 from satsight.randomization.draws import FrameDraws
-from satsight.render.buffers import RadianceImage
+from satsight.render.buffers import RadianceImage, within_box
 from satsight.render.motion import (
     MOTION_THRESHOLD_PX,
     ExposureMotion,
@@ -44,7 +44,7 @@ from satsight.render.renderer import Renderer
 from satsight.scene.keypoints import target_keypoints_body_m
 from satsight.scene.mesh import TargetMesh
 from satsight.scene.objects import SceneMesh
-from satsight.sensor.chain import DnImage, SensorChain, exposure_regions, within_box
+from satsight.sensor.chain import DnImage, SensorChain, exposure_regions
 from satsight.sensor.frame_stars import add_frame_stars
 from satsight.sensor.photometry import frame_photometry
 

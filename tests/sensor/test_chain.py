@@ -13,8 +13,8 @@ from qe_oracle import blackbody_qe, solar_photon_integrals, solar_qe
 from satsight.camera.pinhole import PinholeCamera
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
-from satsight.render.buffers import RadianceImage, margin_pixels_xy
-from satsight.sensor.chain import SensorChain, exposure_regions, mask_box, within_box
+from satsight.render.buffers import RadianceImage, margin_pixels_xy, mask_box, within_box
+from satsight.sensor.chain import SensorChain, exposure_regions
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
 from satsight.sensor.exposure_rule import ExposureRule
 from satsight.sensor.mtf import band_wavelengths_m
@@ -476,3 +476,12 @@ def test_the_object_mask_is_made_once_and_read_only() -> None:
     # Other objects' parts (past the target's) are not the target.
     others = dataclasses.replace(image, target_part_count=2)
     np.testing.assert_array_equal(others.object_mask, (image.part_id > 0) & (image.part_id <= 2))
+
+
+def test_an_image_without_its_radiance_keeps_its_mask() -> None:
+    image = _image(np.ones((4, 5, 3), np.float32))
+    mask = image.object_mask
+    lean = image.without_radiance()
+    assert lean.radiance_w_m2_sr is None and lean.margin_radiance_w_m2_sr is None
+    assert lean.object_mask is mask
+    assert _image(np.ones((4, 5, 3), np.float32)).without_radiance().object_mask.all()

@@ -4,6 +4,7 @@ started from a job run in place, errors passed on."""
 from __future__ import annotations
 
 import threading
+import time
 
 import pytest
 
@@ -58,15 +59,27 @@ def test_jobs_started_from_a_job_run_on_its_thread() -> None:
         assert inner == {ident}
 
 
-def test_a_failing_job_raises_in_the_caller() -> None:
+def test_a_failing_job_raises_in_the_caller_after_every_job_ended() -> None:
+    finished = []
+
     def job(i: int) -> int:
-        if i == 3:
-            raise ValueError("job 3")
+        if i in (1, 3):
+            raise ValueError(f"job {i}")
+        time.sleep(0.02)
+        finished.append(i)
         return i
 
-    with pytest.raises(ValueError, match="job 3"):
+    with pytest.raises(ValueError, match="job 1"):  # the first failure in job order
         run_jobs(job, 6, 2)
+    assert sorted(finished) == [0, 2, 4, 5]  # none still running after the call
     assert run_jobs(lambda i: i, 4, 2) == [0, 1, 2, 3]  # the pool still works
+
+
+def test_batches_of_any_size_keep_at_most_the_asked_threads() -> None:
+    seen = set()
+    for count in range(2, 12):
+        seen |= set(_job_threads(count, 3))
+    assert len(seen) <= 3
 
 
 def test_thread_counts_are_checked() -> None:

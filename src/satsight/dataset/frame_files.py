@@ -82,8 +82,7 @@ class FrameArrays:
         ``keys`` is made of it, so that a frame waiting for its files holds only theirs."""
         if "radiance_exr" in keys or self.image.radiance_w_m2_sr is None:
             return self
-        image = replace(self.image, radiance_w_m2_sr=None, margin_radiance_w_m2_sr=None)
-        return replace(self, image=image)
+        return replace(self, image=self.image.without_radiance())
 
     @cached_property
     def surface_window(self) -> tuple[int, int, int, int]:

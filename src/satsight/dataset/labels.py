@@ -21,9 +21,8 @@ import numpy as np
 from satsight.camera.pinhole import PinholeCamera
 from satsight.frames.rigid import RigidTransform
 from satsight.lighting.light_field import SunLight
-from satsight.render.buffers import RadianceImage
+from satsight.render.buffers import RadianceImage, mask_box
 from satsight.scene.mesh import TargetMesh
-from satsight.sensor.chain import mask_box
 from satsight.vectors import angle_between_rad
 
 #: Keypoint depth tolerance: KEYPOINT_DEPTH_ATOL_M + KEYPOINT_DEPTH_RTOL * depth.

@@ -58,7 +58,7 @@ from satsight.lighting.solar_spectrum import (
     photon_weighted_wavelength_m,
     spectral_weights,
 )
-from satsight.render.buffers import RadianceImage, margin_pixels_xy
+from satsight.render.buffers import RadianceImage, margin_pixels_xy, within_box
 from satsight.sensor.convolution import apply_optics
 from satsight.sensor.detector import DetectorParameters, mean_photon_energy_j
 from satsight.sensor.exposure import exposure_for_fill, mean_electrons_image, simulate_detector
@@ -102,24 +102,6 @@ def exposure_regions(object_mask: np.ndarray, background_mask: np.ndarray | None
     if background_mask is None:
         return {"target": object_mask, "earth": None, "moon": None}
     return {"target": object_mask, "earth": background_mask == 1, "moon": background_mask == 2}
-
-
-def mask_box(mask: np.ndarray) -> tuple[slice, slice] | None:
-    """(rows, columns) slices of the smallest box holding every True pixel of an (H, W)
-    mask, or None when it has none."""
-    rows = np.flatnonzero(mask.any(axis=1))
-    if rows.size == 0:
-        return None
-    columns = np.flatnonzero(mask[rows[0] : rows[-1] + 1].any(axis=0))  # the rows that hold it
-    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(columns[0]), int(columns[-1]) + 1)
-
-
-def within_box(mask: np.ndarray) -> tuple[tuple[slice, slice], np.ndarray]:
-    """(``mask_box``'s slices, empty for an empty mask; the mask within them): an image cut
-    to them and indexed by that mask gives the same pixels, in the same order, as the
-    whole image indexed by ``mask``, without a pass over the whole image."""
-    box = mask_box(mask) or (slice(0, 0), slice(0, 0))
-    return box, mask[box]
 
 
 def _percentile_of(values: np.ndarray, percentile: float) -> float | None:
@@ -371,6 +353,11 @@ class SensorChain:
         rule = self.exposure
         if rule.mode == "fixed":
             return rule.time_s * self.exposure_factor
+        if irradiance_w_m2.shape[:2] != object_mask.shape:
+            raise SatsightError(
+                f"the irradiance image {irradiance_w_m2.shape[:2]} and the object mask "
+                f"{object_mask.shape} must have the same size"
+            )
         box, inside = within_box(object_mask)
         lit = irradiance_w_m2[box][inside]
         if lit.size > EXPOSURE_SAMPLE_PIXELS:

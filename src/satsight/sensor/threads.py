@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -41,7 +41,8 @@ _in_job = threading.local()
 
 
 def _pool(threads: int) -> ThreadPoolExecutor:
-    """The calling thread's pool of ``threads`` threads (a new one in a forked child)."""
+    """The calling thread's pool of up to ``threads`` threads, started as jobs need them
+    (a new pool in a forked child)."""
     pools = getattr(_local, "pools", None)
     if pools is None:
         pools = _local.pools = {}
@@ -65,4 +66,9 @@ def run_jobs(job: Callable[[int], object], count: int, threads: int) -> list:
         finally:
             _in_job.active = False
 
-    return list(_pool(min(threads, count)).map(run, range(count)))
+    # Every job ends before the call returns, even when one fails (then the first failure
+    # in job order is raised): none goes on writing into its caller's arrays.
+    pool = _pool(threads)
+    futures = [pool.submit(run, i) for i in range(count)]
+    wait(futures)
+    return [future.result() for future in futures]
