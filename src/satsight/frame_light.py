@@ -87,7 +87,13 @@ def frame_light_inputs(
     irradiance_scale: float = 1.0,
     earth_direction_cam: np.ndarray | None = None,
 ) -> LightInputs:
-    """The inputs of frame ``index``'s light (``frame_light``'s arguments)."""
+    """The inputs of frame ``index``'s light (``frame_light``).
+
+    A randomised frame (``satsight.frame_variation``) gives the target's pose in the plan's
+    camera frame (``cam_from_body``, turned by its attitude jitter), the Sun's direction in
+    that frame, a factor on the Sun's irradiance and the Earth's direction in that frame
+    (moved behind the target); defaults: the plan's.
+    """
     cam_from_body = track.cam_from_body(index) if cam_from_body is None else cam_from_body
     R_body_from_cam = cam_from_body.R_a_from_b.T
     irradiance = sun_irradiance_w_m2(scenario, track, index) * irradiance_scale
@@ -156,15 +162,7 @@ def light_from_inputs(scenario: Scenario, inputs: LightInputs) -> LightField:
     return dataclasses.replace(light, bodies=tuple(bodies))
 
 
-def frame_light(
-    scenario: Scenario,
-    track: PoseTrack,
-    index: int,
-    cam_from_body: RigidTransform | None = None,
-    sun_direction_cam: np.ndarray | None = None,
-    irradiance_scale: float = 1.0,
-    earth_direction_cam: np.ndarray | None = None,
-) -> LightField:
+def frame_light(scenario: Scenario, track: PoseTrack, index: int) -> LightField:
     """The light at the target in frame ``index`` of the plan, in the body frame.
 
     The Sun's in-band irradiance is the scenario's value at 1 AU scaled by the inverse square
@@ -174,18 +172,10 @@ def frame_light(
     as bodies in the scene (``SceneBody``; the Earth's fixed frame is the ITRS at the frame's
     epoch, or the target's body frame when the scenario has no epoch).
 
-    A randomised frame (``satsight.frame_variation``) gives the target's pose in the plan's
-    camera frame (``cam_from_body``, turned by its attitude jitter), the Sun's direction in
-    that frame, a factor on the Sun's irradiance and the Earth's direction in that frame
-    (moved behind the target); defaults: the plan's.
-
-    The same as ``light_from_inputs(scenario, frame_light_inputs(...))``.
+    The same as ``light_from_inputs(scenario, frame_light_inputs(scenario, track, index))``;
+    a randomised frame gives ``frame_light_inputs`` its own pose, Sun and Earth.
     """
-    inputs = frame_light_inputs(
-        scenario, track, index, cam_from_body, sun_direction_cam, irradiance_scale,
-        earth_direction_cam,
-    )  # fmt: skip
-    return light_from_inputs(scenario, inputs)
+    return light_from_inputs(scenario, frame_light_inputs(scenario, track, index))
 
 
 def _R_cam_from_earth_fixed(track: PoseTrack, index: int) -> np.ndarray:

@@ -20,7 +20,6 @@ from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
 from satsight.errors import SatsightError
 from satsight.frame_light import (
-    frame_light,
     frame_light_inputs,
     light_from_inputs,
     sun_irradiance_w_m2,
@@ -282,8 +281,9 @@ class FrameEngine:
         def light_at(track: PoseTrack, i: int) -> LightField:
             if variation is None:
                 return self._light(frame_light_inputs(self.scenario, track, i))
-            return frame_light(
-                variation.light_scenario(draws),
+            scenario = variation.light_scenario(draws)
+            inputs = frame_light_inputs(
+                scenario,
                 track,
                 i,
                 variation.poses(track.cam_from_body(i), draws).light_cam_from_body,
@@ -291,6 +291,7 @@ class FrameEngine:
                 variation.irradiance_scale(draws),
                 variation.earth_direction_cam(draws),
             )
+            return light_from_inputs(scenario, inputs)
 
         def render(
             pose: RigidTransform, light: LightField, seed: int, offset_s: float = 0.0
