@@ -29,8 +29,9 @@ from satsight.camera.pinhole import PinholeCamera
 from satsight.config.scenario import Scenario
 from satsight.dataset.labels import frame_labels
 from satsight.errors import SatsightError
+from satsight.frame_light import frame_light
 from satsight.frames.rigid import look_at_cam_from_body
-from satsight.pipeline import FrameEngine, frame_light, frame_seed
+from satsight.pipeline import FrameEngine, frame_seed
 from satsight.render.renderer import Renderer
 from satsight.sensor.photometry import frame_photometry
 
