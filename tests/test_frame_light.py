@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pickle
 from collections import Counter
 
 import numpy as np
@@ -21,7 +22,7 @@ from satsight.frame_light import (
 )
 from satsight.lighting.bodies import environment_light_field
 from satsight.lighting.scene_bodies import earth_body
-from satsight.pipeline import FrameEngine
+from satsight.pipeline import LIGHT_CACHE_SIZE, FrameEngine
 from satsight.poses.plan import plan_track
 
 RSSF_FRAMES = 24
@@ -143,8 +144,24 @@ def test_engine_projects_one_light_field_for_the_frames_of_one_state() -> None:
     engine = FrameEngine(_rssf(frames=6, width_px=48))
     frames = [engine.render(k) for k in range(4)]
     assert len({id(frame.light) for frame in frames}) <= 2
-    info = engine._light.cache_info()
-    assert info.misses <= 2 and info.misses + info.hits == 4
+    assert len(engine._lights) == len({id(frame.light) for frame in frames})
+
+
+def test_the_engine_keeps_the_newest_lights() -> None:
+    engine = FrameEngine(_rssf(frames=3, width_px=32))
+    track = engine.track
+    made = []
+    for k in range(LIGHT_CACHE_SIZE + 2):  # other Sun strengths: other inputs
+        inputs = dataclasses.replace(
+            frame_light_inputs(engine.scenario, track, 0), irradiance_w_m2=1000.0 + k
+        )
+        made.append((inputs, engine.light(inputs)))
+    assert len(engine._lights) == LIGHT_CACHE_SIZE
+    assert engine.light(made[-1][0]) is made[-1][1]  # kept
+    assert engine.light(made[0][0]) is not made[0][1]  # dropped, made again
+    # An engine that has not rendered yet pickles (as before), its lights with it.
+    copy = pickle.loads(pickle.dumps(engine))
+    assert len(copy._lights) == LIGHT_CACHE_SIZE
 
 
 def test_a_frame_renders_the_same_bytes_alone_and_after_others() -> None:
@@ -155,7 +172,7 @@ def test_a_frame_renders_the_same_bytes_alone_and_after_others() -> None:
     for k in (0, 1, 2, 3):
         engine.render(k)
     after = engine.render(4)
-    assert engine._light.cache_info().hits >= 3
+    assert len(engine._lights) <= 2  # the five frames shared their light
     for name in ("radiance_w_m2_sr", "depth_m", "part_id"):
         assert getattr(alone.image, name).tobytes() == getattr(after.image, name).tobytes()
     for alone_body, after_body in zip(alone.light.bodies, after.light.bodies, strict=True):

@@ -7,7 +7,6 @@ runs it over a dataset and writes the files.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -20,6 +19,7 @@ from satsight.dataset.header import FarCamera, TargetDescription, labels_header
 from satsight.dataset.labels import crop_labels, crop_window_xyxy_px, frame_labels
 from satsight.errors import SatsightError
 from satsight.frame_light import (
+    LightInputs,
     frame_light_inputs,
     light_from_inputs,
     sun_irradiance_w_m2,
@@ -225,10 +225,19 @@ class FrameEngine:
         self.normals = normals
         # The light of the last few distinct inputs: the frames of an RSSF plan share the
         # target's state, so one light field (13 ms at 1024^2 with the Earth and the Moon)
-        # serves them all (``satsight.frame_light``).
-        self._light = functools.lru_cache(maxsize=LIGHT_CACHE_SIZE)(
-            functools.partial(light_from_inputs, scenario)
-        )
+        # serves them all (``satsight.frame_light``). A plain dict: the engine pickles.
+        self._lights: dict[LightInputs, LightField] = {}
+
+    def light(self, inputs: LightInputs) -> LightField:
+        """The light of a frame's inputs, kept for the frames that share them (up to
+        ``LIGHT_CACHE_SIZE`` inputs, the oldest dropped first)."""
+        light = self._lights.get(inputs)
+        if light is None:
+            light = light_from_inputs(self.scenario, inputs)
+            while len(self._lights) >= LIGHT_CACHE_SIZE:
+                self._lights.pop(next(iter(self._lights)))
+            self._lights[inputs] = light
+        return light
 
     def camera_mode(self, plan_index: int) -> str:
         """The camera mode of plan frame ``plan_index``: ``far`` when its range to the
@@ -280,7 +289,7 @@ class FrameEngine:
 
         def light_at(track: PoseTrack, i: int) -> LightField:
             if variation is None:
-                return self._light(frame_light_inputs(self.scenario, track, i))
+                return self.light(frame_light_inputs(self.scenario, track, i))
             scenario = variation.light_scenario(draws)
             inputs = frame_light_inputs(
                 scenario,
