@@ -284,3 +284,25 @@ def test_contact_sheet_places_every_thumbnail_in_its_cell_with_a_caption(tmp_pat
         white = np.argwhere(block == 255)
         assert len(white) == scale**2 and tuple(white.min(axis=0)) == (5 * scale, 7 * scale)
         assert (cell[: ys.min()] < 128).any()  # the caption above it
+
+
+@pytest.mark.parametrize("key", ["dn_png16", "preview_png8"])
+@pytest.mark.parametrize("bbox", [None, [40, 30, 52, 47], [0, 0, 3, 5], [300, 200, 319, 239]])
+def test_a_kept_thumbnail_is_the_one_made_from_the_whole_frame(tmp_path, rng, key, bbox):
+    """Thumbnails are cut to their window before any conversion or stretch: the same bits as
+    converting and stretching the whole frame first."""
+    from satsight.dataset.contact_sheet import _cache_path, frame_thumbnail, keep_thumbnail
+
+    bias, full_well = 100.0, 60000.0
+    dn = rng.integers(90, 65535, size=(240, 320), dtype=np.uint16)
+    stretch = PreviewStretch("asinh", 40.0)
+    whole = dn if key == "dn_png16" else stretch.apply(dn, bias, full_well)
+    image = whole.astype(np.float32)
+    if key == "dn_png16":
+        image = np.clip(image - np.float32(bias), 0.0, None)
+    x0, y0, x1, y1 = crop_box_xyxy_px(bbox, image.shape)
+    expected = thumbnail(image[y0:y1, x0:x1, None], max_side_px=256)[..., 0]
+    np.testing.assert_array_equal(frame_thumbnail(whole, key, bbox, bias), expected)
+    record = {"frame_index": 3, "files": {key: "x.png"}, "bbox_xyxy_px": bbox}
+    keep_thumbnail(tmp_path, record, dn, bias, full_well, stretch)
+    np.testing.assert_array_equal(np.load(_cache_path(tmp_path, 3)), expected)

@@ -60,12 +60,14 @@ def thumbnail_source(record: dict) -> tuple[str, bool, list | None] | None:
 
 
 def frame_thumbnail(image: np.ndarray, key: str, bbox: list | None, bias_dn: float) -> np.ndarray:
-    """The (h, w) float thumbnail in [0, 1] of a uint16 DN or uint8 preview image."""
-    image = image.astype(np.float32)
+    """The (h, w) float thumbnail in [0, 1] of a uint16 DN or uint8 preview image, from
+    the window around ``bbox`` (``crop_box_xyxy_px``; cut first: a 4096 x 4112 frame's
+    conversion took 86 ms, its window's well under 1 ms)."""
+    x0, y0, x1, y1 = crop_box_xyxy_px(bbox, image.shape)
+    image = image[y0:y1, x0:x1].astype(np.float32)
     if key == "dn_png16":
         image = np.clip(image - np.float32(bias_dn), 0.0, None)
-    x0, y0, x1, y1 = crop_box_xyxy_px(bbox, image.shape)
-    return thumbnail(image[y0:y1, x0:x1, None], max_side_px=THUMBNAIL_SIDE_PX)[..., 0]
+    return thumbnail(image[..., None], max_side_px=THUMBNAIL_SIDE_PX)[..., 0]
 
 
 def _cache_path(root: Path, frame_index: int) -> Path:
@@ -90,8 +92,10 @@ def keep_thumbnail(
     key, _, bbox = source
     if key == "dn_png16":
         image = dn
-    else:
-        image = (preview or PreviewStretch()).apply(dn, bias_dn, full_well_dn)
+    else:  # the stretch is per pixel: the window's pixels alone, then the whole window
+        x0, y0, x1, y1 = crop_box_xyxy_px(bbox, dn.shape)
+        image = (preview or PreviewStretch()).apply(dn[y0:y1, x0:x1], bias_dn, full_well_dn)
+        bbox = None
     buffer = io.BytesIO()
     np.save(buffer, frame_thumbnail(image, key, bbox, bias_dn))
     path = _cache_path(root, record["frame_index"])
