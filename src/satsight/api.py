@@ -265,7 +265,8 @@ def generate(
     dataset of the same scenario in it (a complete one is returned as it is). shard:
     ``"K/N"``, render only shard K of N. workers / scheduler: render on a local Dask
     cluster of that many processes, or on the Dask scheduler at that address.
-    on_frame_done(done, total): called after each committed frame.
+    on_frame_done(done, total): called after each committed frame, one call at a time, on
+    the thread that commits frames (not always the caller's).
 
     Frames are committed one at a time, so a run that fails or is stopped keeps its
     committed frames and never leaves a half-written one; ``resume=True`` finishes it.

@@ -77,7 +77,9 @@ def generate_dataset(
     there. shard: render only that shard's frames (joined later by ``satsight merge``).
     workers / scheduler: render on a Dask LocalCluster of that many processes, or on the
     Dask scheduler at that address. on_frame_done(done, total) is called after each
-    committed frame. stop: a flag that, once set, ends the run after the frames in flight.
+    committed frame, one call at a time, on the thread that commits (in a pipelined local
+    run the files' writer, not the caller's). stop: a flag that, once set, ends the run
+    after the frames in flight.
     """
     started = time.perf_counter()
     out_dir = Path(out_dir)
