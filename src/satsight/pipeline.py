@@ -122,7 +122,7 @@ def expose_frame(
         irradiance = irradiance_w_m2.copy()
     mask = image.object_mask
     if exposure_s is None:
-        exposure_s = sensor.exposure_time_s(irradiance, mask)
+        exposure_s, _ = sensor.still_exposure(image, irradiance)
     # Each region as (its box, its mask in the box), or None: the same pixels in the same
     # order as the whole frame's, without a pass over the frame for each label (4096 x 4112:
     # 60 ms a frame).
@@ -341,8 +341,10 @@ class FrameEngine:
     ) -> tuple[ExposureMotion | None, np.ndarray | None]:
         """The motion of a frame over its exposure, decided on its still (``motion_blur``;
         ``satsight.render.motion``), or None when it cannot reach the threshold; and the
-        still's focal-plane irradiance when the auto exposure needed it (None otherwise)."""
-        mode, rule = self.scenario.render.motion_blur, sensor.exposure
+        still's whole focal-plane irradiance when the auto exposure made it (None otherwise:
+        a small target's exposure reads only a window around it,
+        ``SensorChain.still_exposure``)."""
+        mode = self.scenario.render.motion_blur
         corners = self.mesh.box_keypoints_body_m[:8]
         if self._moving:  # flying objects in view move over the exposure too
             view = FrameView(camera, self.track.cam_from_body(plan_index), np.zeros(3))
@@ -350,16 +352,13 @@ class FrameEngine:
             if objects is not None:
                 target = corners
                 corners = lambda tau: np.concatenate([target, objects(tau)])  # noqa: E731
-        longest = rule.time_s if rule.mode == "fixed" else rule.max_time_s
+        longest = sensor.longest_exposure_s
         probe = None
         if mode is not False:
             probe = exposure_motion(camera, self.track, plan_index, corners, longest, mode)
         if probe is None or (probe.sample_count == 1 and probe.path_px <= MOTION_THRESHOLD_PX):
             return None, None  # (the path grows with the exposure)
-        exposure_s, irradiance = rule.time_s, None
-        if rule.mode != "fixed":
-            irradiance = sensor.focal_plane_irradiance_w_m2(still)
-            exposure_s = sensor.exposure_time_s(irradiance, still.object_mask)
+        exposure_s, irradiance = sensor.still_exposure(still)
         motion = exposure_motion(camera, self.track, plan_index, corners, exposure_s, mode)
         return motion, irradiance
 

@@ -13,7 +13,7 @@ from qe_oracle import blackbody_qe, solar_photon_integrals, solar_qe
 from satsight.camera.pinhole import PinholeCamera
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
-from satsight.render.buffers import RadianceImage, margin_pixels_xy, mask_box, within_box
+from satsight.render.buffers import RadianceImage, mask_box, within_box
 from satsight.sensor.chain import SensorChain, exposure_regions
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
 from satsight.sensor.exposure_rule import ExposureRule
@@ -21,8 +21,11 @@ from satsight.sensor.mtf import band_wavelengths_m
 from satsight.sensor.optics import Optics
 from satsight.sensor.star_field import StarsInView, star_photon_counts
 from satsight.sensor.star_stamps import star_photons_image
+from sensor_frames import BAND_NM
+from sensor_frames import radiance_image as _image
+from sensor_frames import sensor_chain as _chain
+from sensor_frames import with_ring as _with_ring
 
-BAND_NM = (450.0, 900.0)
 H_PLANCK_J_S = 6.62607015e-34
 C_M_S = 299_792_458.0
 #: The CCD231-84 curve's mean over the band for E-490 sunlight, from the data files.
@@ -33,31 +36,6 @@ SOLAR_QE = solar_qe(*BAND_NM)
 QE_RTOL = 1e-5
 #: A detector without fixed pattern or dark current: its mean electrons are eta x photons.
 CLEAN = {"prnu_fraction": 0.0, "dsnu_e_per_s": 0.0, "dark_current_e_per_s": 0.0}
-
-
-def _chain(
-    exposure: ExposureRule | None = None, size_px: tuple[int, int] = (96, 80), **detector
-) -> SensorChain:
-    camera = PinholeCamera.high_resolution().with_size(*size_px)
-    return SensorChain(
-        camera=camera,
-        optics=Optics.for_preset("high_resolution"),
-        detector=DetectorParameters(pixel_pitch_m=camera.pixel_pitch_m, **detector),
-        band_nm=BAND_NM,
-        exposure=exposure or ExposureRule(),
-        camera_seed=3,
-    )
-
-
-def _image(radiance_rgb: np.ndarray) -> RadianceImage:
-    h, w = radiance_rgb.shape[:2]
-    hit = radiance_rgb.any(axis=2)
-    return RadianceImage(
-        radiance_w_m2_sr=radiance_rgb.astype(np.float32),
-        depth_m=np.where(hit, np.float32(1000.0), np.float32(0.0)),
-        part_id=hit.astype(np.uint16),
-        normals_cam=np.zeros((h, w, 3), np.float32),
-    )
 
 
 def test_channel_weights_are_the_solar_thirds_of_the_band() -> None:
@@ -335,18 +313,6 @@ def test_light_outside_the_object_mask_is_kept() -> None:
     assert float(-kernel[kernel < 0].sum()) > 0.07
     assert irradiance.min() >= 0.0
     assert float(irradiance.sum()) == pytest.approx(expected, rel=1e-5)
-
-
-def _with_ring(radiance_rgb: np.ndarray, margin_px: int) -> RadianceImage:
-    """A frame whose radiance comes from the middle of a larger (H + 2m, W + 2m, 3) scene,
-    with the rest as its margin ring (the renderer's ``margin_pixels_xy`` order)."""
-    m = margin_px
-    h, w = radiance_rgb.shape[0] - 2 * m, radiance_rgb.shape[1] - 2 * m
-    x, y = margin_pixels_xy(w, h, m)
-    inner = _image(radiance_rgb[m : m + h, m : m + w])
-    return dataclasses.replace(
-        inner, margin_px=m, margin_radiance_w_m2_sr=radiance_rgb[y + m, x + m].astype(np.float32)
-    )
 
 
 def test_a_scene_filling_the_frame_reads_uniform_to_the_corners_with_the_margin() -> None:
