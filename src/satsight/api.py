@@ -257,6 +257,7 @@ def generate(
     scheduler: str | None = None,
     overrides: Mapping[str, Any] | None = None,
     on_frame_done: Callable[[int, int], None] | None = None,
+    render_processes: int | str = 1,
 ) -> Dataset:
     """Render a scenario into the dataset folder ``out_dir``, as ``satsight generate``
     does, and return the opened dataset.
@@ -266,7 +267,10 @@ def generate(
     ``"K/N"``, render only shard K of N. workers / scheduler: render on a local Dask
     cluster of that many processes, or on the Dask scheduler at that address.
     on_frame_done(done, total): called after each committed frame, one call at a time, on
-    the thread that commits frames (not always the caller's).
+    the thread that commits frames (not always the caller's). render_processes: render in
+    that many local processes, or ``"auto"`` as ``satsight generate`` does (several for
+    long runs of small frames, which they make faster); processes are spawned, so the
+    calling script needs Python's ``if __name__ == "__main__":`` guard.
 
     Frames are committed one at a time, so a run that fails or is stopped keeps its
     committed frames and never leaves a half-written one; ``resume=True`` finishes it.
@@ -292,6 +296,7 @@ def generate(
             scheduler=scheduler,
             on_frame_done=on_frame_done,
             stop=stop,
+            render_processes=render_processes,
         )
     if summary.interrupted:
         raise KeyboardInterrupt(

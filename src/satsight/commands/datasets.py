@@ -65,6 +65,7 @@ def _generate(
             scheduler=scheduler,
             on_frame_done=lambda done, total: progress.update(task, completed=done, total=total),
             stop=stop,
+            render_processes="auto",
         )
     if summary.interrupted:
         demo = config_path == example_scenario_path()
@@ -91,7 +92,10 @@ def _generate(
     console.print(
         f"wrote {summary.rendered} {what} to {summary.out_dir}{before} in "
         f"{summary.total_seconds:.1f} s ({per_frame:.2f} s/frame end to end, "
-        f"{summary.variant}" + (f"; stage medians: {stages}" if stages else "") + ")"
+        f"{summary.variant}"
+        + (f" in {n} render processes" if (n := summary.render_processes) > 1 else "")
+        + (f"; stage medians: {stages}" if stages else "")
+        + ")"
     )
     if shard is None and (summary.out_dir / "contact_sheet.png").is_file():
         console.print(f"look first at {summary.out_dir / 'contact_sheet.png'}")

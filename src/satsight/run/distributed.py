@@ -18,19 +18,18 @@ import hashlib
 import logging
 import os
 import secrets
-import signal
 import socket
-import threading
 from collections.abc import Callable, Iterator
-from concurrent.futures import CancelledError, ThreadPoolExecutor
+from concurrent.futures import CancelledError
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from satsight.config.scenario import parse_scenario
 from satsight.dataset.manifest import scenario_sha256
 from satsight.errors import SatsightError
 from satsight.frame_memory import frame_memory_bytes, memory_limit_bytes
 from satsight.render.backend import machine_cores
+from satsight.run.frame_tasks import make_frame
+from satsight.run.interrupt import sigint_ignored
 from satsight.run.scheduler_address import CONNECT_TIMEOUT_S, probe_scheduler, scheduler_address
 
 log = logging.getLogger(__name__)
@@ -42,42 +41,11 @@ CORES_PER_PROCESS = 2
 #: Times a frame lost with its worker (or with the scattered scenario) is submitted again.
 MAX_FRAME_ATTEMPTS = 4
 _GB = 1e9
-_ENGINES: dict = {}
-_ENCODERS: list[ThreadPoolExecutor] = []
-
-
-def _worker_engine(scenario_json: dict):
-    """This process's FrameEngine for a scenario, built on its first frame and kept."""
-    from satsight.pipeline import FrameEngine
-
-    key = scenario_sha256(scenario_json)
-    if key not in _ENGINES:
-        _ENGINES.clear()  # one scenario at a time per process
-        _ENGINES[key] = FrameEngine(parse_scenario(scenario_json, "scenario"))
-    if not _ENCODERS:
-        from threadpoolctl import threadpool_limits
-
-        from satsight.run.frame_stages import ENCODER_THREADS
-        from satsight.run.local import BLAS_THREADS
-
-        threadpool_limits(limits=BLAS_THREADS, user_api="blas")  # for the worker's life
-        _ENCODERS.append(ThreadPoolExecutor(ENCODER_THREADS))
-    return _ENGINES[key]
 
 
 def render_frame_task(scenario_json: dict, root: str, frame_index: int, variant: str) -> dict:
     """Render and write one frame on a worker; its journal record."""
-    from satsight.run.frame_stages import sense_frame, write_frame
-
-    engine = _worker_engine(scenario_json)
-    if engine.renderer.variant != variant:
-        raise SatsightError(
-            f"a worker renders with {engine.renderer.variant}, the dataset with {variant}; "
-            "set render.variant in the scenario so that every worker uses the same one"
-        )
-    frame = engine.render(frame_index)
-    record, _ = write_frame(engine, Path(root), sense_frame(engine, frame), _ENCODERS[0])
-    return record
+    return make_frame(scenario_json, root, frame_index, variant)[0]
 
 
 def local_worker_cap(
@@ -219,21 +187,6 @@ def check_workers_write(client, folder: Path) -> None:
 
 
 @contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Ignore Ctrl-C while local worker processes start: they inherit the ignored signal,
-    so a Ctrl-C in the terminal reaches only this process, which stops the run after the
-    frames in flight (the workers would otherwise die with their frames)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-@contextmanager
 def dask_client(
     workers: int | None,
     scheduler: str | None,
@@ -273,7 +226,7 @@ def dask_client(
         threads = os.environ.get("SATSIGHT_RENDER_THREADS") or str(
             max(1, machine_cores() // workers)
         )
-        with _sigint_ignored():  # inherited by the worker processes
+        with sigint_ignored():  # inherited by the worker processes
             cluster = LocalCluster(
                 n_workers=workers,
                 threads_per_worker=1,

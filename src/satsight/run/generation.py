@@ -21,6 +21,7 @@ from satsight.dataset.lock import WriterLock
 from satsight.dataset.manifest import finalize_dataset
 from satsight.dataset.reader import COMPLETE_NAME
 from satsight.dataset.staging import check_dataset_folder
+from satsight.errors import SatsightError
 from satsight.frame_memory import PIPELINED_FRAMES, frames_in_flight
 from satsight.pipeline import FrameEngine
 from satsight.run.commit_table import CommitTable, committed_frames
@@ -34,6 +35,7 @@ from satsight.run.dataset_folder import (
 )
 from satsight.run.interrupt import StopFlag
 from satsight.run.local import run_local
+from satsight.run.processes import local_processes, requested_processes, run_processes
 from satsight.run.shard import Shard
 
 log = logging.getLogger(__name__)
@@ -54,6 +56,7 @@ class RunSummary:
     variant: str
     total_seconds: float
     stage_seconds: dict[str, list[float]] = field(default_factory=dict)
+    render_processes: int = 1  # local render processes that made the frames (1: this one)
 
     @property
     def render_seconds(self) -> list[float]:
@@ -70,6 +73,7 @@ def generate_dataset(
     scheduler: str | None = None,
     on_frame_done: ProgressCallback | None = None,
     stop: StopFlag | None = None,
+    render_processes: int | str = 1,
 ) -> RunSummary:
     """Render ``scenario`` into the dataset folder ``out_dir``, frame by frame.
 
@@ -79,11 +83,16 @@ def generate_dataset(
     Dask scheduler at that address. on_frame_done(done, total) is called after each
     committed frame, one call at a time, on the thread that commits (in a pipelined local
     run the files' writer, not the caller's). stop: a flag that, once set, ends the run
-    after the frames in flight.
+    after the frames in flight. render_processes: without workers or a scheduler, render
+    in that many local processes (``satsight.run.processes``), or ``"auto"``: as
+    ``local_processes`` decides for the frame size and count (``satsight generate``'s
+    choice). Processes are started by spawning, so a script that asks for more than one
+    needs Python's ``if __name__ == "__main__":`` guard.
     """
     started = time.perf_counter()
     out_dir = Path(out_dir)
     stop = stop or StopFlag()
+    _check_render_processes(render_processes)
     check_dataset_folder(out_dir, overwrite, resume)  # before the mesh, renderer and stars
     # Frames in flight from the memory available before anything is loaded (the estimate
     # holds the run's fixed cost).
@@ -113,7 +122,8 @@ def generate_dataset(
         if client is None and why_one is not None:
             log.warning("%s", why_one)
         _render_missing_frames(engine, out_dir, manifest, shard or Shard(0, 1), client, summary,
-                               stop, on_frame_done, complete, in_flight)  # fmt: skip
+                               stop, on_frame_done, complete, in_flight,
+                               render_processes)  # fmt: skip
     summary.total_seconds = time.perf_counter() - started
     return summary
 
@@ -129,11 +139,13 @@ def _render_missing_frames(
     on_frame_done: ProgressCallback | None,
     complete: bool = False,
     in_flight: int = PIPELINED_FRAMES,
+    render_processes: int | str = 1,
 ) -> None:
     """Commit every frame of ``shard`` not yet committed in ``out_dir`` (or whose files are
     missing or changed), then close the dataset (unless the run was stopped). complete:
     ``out_dir`` is closed already; it is left untouched when every file is intact.
-    in_flight: frames in flight when they are rendered in this process (``run_local``)."""
+    in_flight: frames in flight when they are rendered in this process (``run_local``).
+    render_processes: ``generate_dataset``'s."""
     frames = shard.frames(engine.frame_count)
     table = CommitTable(shard, engine.frame_count)
     damaged = committed_frames(out_dir, table)
@@ -161,7 +173,14 @@ def _render_missing_frames(
             if on_frame_done is not None:
                 on_frame_done(table.count, len(frames))
 
+        processes = 1
         if client is None:
+            processes = _processes(engine, render_processes, len(todo))
+        if processes > 1:
+            summary.render_processes = processes
+            run_processes(engine, scenario_json(engine.scenario), out_dir, todo, commit, stop,
+                          summary.stage_seconds, processes)  # fmt: skip
+        elif client is None:
             run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds, in_flight)
         else:
             from satsight.run.distributed import run_distributed
@@ -180,3 +199,26 @@ def _render_missing_frames(
         remove_temporary_files(out_dir)  # left by workers killed mid-write
         finalize_dataset(out_dir, manifest, table.journal_lines(out_dir))
         summary.complete = True
+
+
+def _processes(engine: FrameEngine, requested: int | str, frames: int) -> int:
+    """Local render processes for ``frames`` frames: ``requested``, or ``local_processes``'
+    choice for ``"auto"`` (its reason logged)."""
+    if requested == "auto":
+        camera = engine.camera
+        count, why = local_processes(camera.width_px, camera.height_px, frames)
+        if why is not None:
+            log.info("%s", why)
+        return count
+    return requested
+
+
+def _check_render_processes(requested: int | str) -> None:
+    """A clear error, before anything is written, for a bad ``render_processes`` (or, with
+    ``"auto"``, a bad ``SATSIGHT_LOCAL_PROCESSES``)."""
+    if requested == "auto":
+        requested_processes()
+    elif isinstance(requested, bool) or not isinstance(requested, int) or requested < 1:
+        raise SatsightError(
+            f"render_processes must be a whole number >= 1 or 'auto', got {requested!r}"
+        )

@@ -40,3 +40,18 @@ def stop_on_sigint(flag: StopFlag) -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C while local worker or render processes start: they inherit the
+    ignored signal, so a Ctrl-C in the terminal reaches only this process, which stops the
+    run after the frames in flight (the processes would otherwise die with their frames)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)

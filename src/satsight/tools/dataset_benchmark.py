@@ -9,8 +9,12 @@ peak resident memory and CPU time are its own. Reported per case:
   sheet) included: what a user waits;
 * ``steady_seconds_per_frame``: the time between the first and the last frame's commit
   over the frames in between: what each further frame of a long dataset costs;
-* ``cpu_percent``: CPU time (user + system, all threads) over wall time, in % of one core;
-* ``peak_rss_mb``: the child's peak resident memory;
+* ``cpu_percent``: CPU time (user + system, all threads, and the render processes' when
+  the run started them) over wall time, in % of one core;
+* ``peak_rss_mb``: the child's peak resident memory, plus its render processes' (their
+  largest peak times their number, an upper bound);
+* ``render_processes``: the local render processes that made the frames (1: the child
+  itself; ``satsight.run.processes``: several for long runs of small frames);
 * ``stage_median_s``: median seconds per frame of the render, sensor and file stages (they
   overlap in the pipeline, so they do not add up to the wall time);
 * ``megabytes_per_frame``: bytes written per frame.
@@ -71,8 +75,6 @@ def run_case(
     """One case in this process: generate the dataset and time it (see module docstring).
     workers: on a LocalCluster of that many workers (``--workers``). cores: first hold this
     process (and the workers it starts) to that many of its cores."""
-    import resource
-
     from satsight.config.scenario import parse_scenario
     from satsight.run.generation import generate_dataset
 
@@ -86,10 +88,11 @@ def run_case(
         out_dir,
         workers=workers,
         on_frame_done=lambda d, n: commits.append(time.perf_counter()),
+        render_processes="auto",  # as ``satsight generate``
     )
     wall = time.perf_counter() - t0
     cpu1 = os.times()
-    cpu = (cpu1.user - cpu0.user) + (cpu1.system - cpu0.system)
+    cpu = sum(getattr(cpu1, f) - getattr(cpu0, f) for f in _CPU_FIELDS)
     commits = commits[1:]  # the first call reports the frames already there (none)
     written = sum(p.stat().st_size for p in out_dir.rglob("*") if p.is_file())
     return {
@@ -100,15 +103,32 @@ def run_case(
         "steady_seconds_per_frame": (commits[-1] - commits[0]) / (len(commits) - 1),
         "wall_s": wall,
         "cpu_percent": 100.0 * cpu / wall,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "peak_rss_mb": _peak_rss_mb(summary.render_processes),
         "stage_median_s": {
             name: statistics.median(times) for name, times in summary.stage_seconds.items()
         },
         "megabytes_per_frame": written / summary.rendered / 1e6,
         "variant": summary.variant,
+        "render_processes": summary.render_processes,
         "workers": workers,
         "cores": len(os.sched_getaffinity(0)),
     }
+
+
+#: ``os.times`` fields of this process and of its ended children (render processes).
+_CPU_FIELDS = ("user", "system", "children_user", "children_system")
+
+
+def _peak_rss_mb(render_processes: int) -> float:
+    """Peak resident memory (MB) of this process, plus that of its largest ended child
+    times ``render_processes`` when it had render processes (an upper bound: their peaks
+    need not coincide)."""
+    import resource
+
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    if render_processes <= 1:
+        return own
+    return own + render_processes * resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
 
 
 def _child(arguments: list[str], env: dict | None = None) -> dict:

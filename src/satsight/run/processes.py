@@ -1,0 +1,165 @@
+"""Small frames made by local render processes, one per core, while this process commits.
+
+A small frame's work is mostly Python: tracing the renderer's kernels, the sensor's and
+the writer's bookkeeping. Python runs one thread at a time per process, so the threads of
+one process (``satsight.run.local``) leave a core idle for much of each frame: 1024 x 1024
+lean frames of the RSSF example took 69-79 ms each there with 147-150 % CPU on 2 cores.
+One process per core, each making whole frames (``satsight.run.frame_tasks``), made them in
+45 ms (the measures are in docs/design.md, "Render processes"). A process costs its
+start-up (about 1.5 s: its imports, its own scenario, plan, star catalogue and compiled
+kernels) and its own memory, so they start only for enough frames that fit in memory
+(``local_processes``).
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+
+from satsight.errors import SatsightError
+from satsight.frame_memory import frame_memory_bytes, memory_limit_bytes
+from satsight.pipeline import FrameEngine
+from satsight.render.backend import machine_cores
+from satsight.run.frame_tasks import make_frame
+from satsight.run.interrupt import StopFlag, sigint_ignored
+
+log = logging.getLogger(__name__)
+
+#: Environment variable that sets the number of render processes of a local run: a whole
+#: number >= 1 (1: this process renders), or ``auto`` (the default: ``local_processes``).
+PROCESSES_VARIABLE = "SATSIGHT_LOCAL_PROCESSES"
+#: Largest frame (pixels) made by render processes. Measured at 1024 x 1024; at 4096 x 4112
+#: the sensor and the encoders release the interpreter's lock for most of their work, and
+#: one process keeps the cores busy with a third of the memory.
+PROCESS_MAX_PIXELS = 1 << 21
+#: Fewest frames to make for render processes to repay their start-up (1.4 s more than
+#: one process at 1024 x 1024, 25 ms saved a frame: even at about 60 frames).
+PROCESS_MIN_FRAMES = 100
+#: Frames queued per process beyond the one it makes, so that none waits for this one.
+_QUEUED_PER_PROCESS = 1
+
+
+def requested_processes(environ: dict | None = None) -> int | None:
+    """The render processes ``SATSIGHT_LOCAL_PROCESSES`` asks for (None: ``auto``, unset)."""
+    env = os.environ if environ is None else environ
+    text = env.get(PROCESSES_VARIABLE, "").strip().lower()
+    if text in ("", "auto"):
+        return None
+    if not text.isdigit() or int(text) < 1:
+        raise SatsightError(
+            f"{PROCESSES_VARIABLE}={text!r}: expected a whole number >= 1 of render "
+            "processes (1: this process renders) or 'auto'"
+        )
+    return int(text)
+
+
+def local_processes(
+    width_px: int,
+    height_px: int,
+    frames: int,
+    cores: int | None = None,
+    memory_bytes: float | None = None,
+    environ: dict | None = None,
+) -> tuple[int, str | None]:
+    """How many render processes a local run of ``frames`` width x height px frames starts
+    (1: none, this process renders), and why, when more than one (None otherwise).
+
+    ``SATSIGHT_LOCAL_PROCESSES`` = N sets N (1 turns them off); by default one per core
+    (``cores``, default the machine's), for frames of at most ``PROCESS_MAX_PIXELS`` and at
+    least ``PROCESS_MIN_FRAMES`` of them, as many as fit in ``memory_bytes`` (default:
+    ``memory_limit_bytes``) with this process's own frame beside them."""
+    count = requested_processes(environ)
+    if count is not None:
+        return count, (
+            f"{count} render processes ({PROCESSES_VARIABLE}={count})" if count > 1 else None
+        )
+    cores = machine_cores() if cores is None else cores
+    if cores < 2 or width_px * height_px > PROCESS_MAX_PIXELS or frames < PROCESS_MIN_FRAMES:
+        return 1, None
+    memory_bytes = memory_limit_bytes(environ) if memory_bytes is None else memory_bytes
+    count = cores
+    if memory_bytes is not None:
+        own = frame_memory_bytes(width_px, height_px, kept=False)
+        each = frame_memory_bytes(width_px, height_px, kept=True)
+        count = min(cores, int((memory_bytes - own) // each))
+    if count < 2:
+        return 1, None
+    return count, (
+        f"{count} render processes, one per core: {width_px} x {height_px} px frames are "
+        f"made faster side by side than by the threads of one process ({PROCESSES_VARIABLE}=1 "
+        "renders in this process)"
+    )
+
+
+def run_processes(
+    engine: FrameEngine,
+    scenario_json: dict,
+    root: Path,
+    todo: list[int],
+    commit: Callable[[dict], None],
+    stop: StopFlag,
+    times: dict[str, list[float]],
+    processes: int,
+) -> None:
+    """Make the frames of ``todo`` in ``processes`` render processes and ``commit`` each
+    record as it comes back (the lowest frame first among those done together).
+
+    Each process renders on one thread (the processes fill the cores) and ignores Ctrl-C:
+    a stop (``stop``) ends the run after the frames in flight, which are committed. A frame
+    that fails raises its error here, after the frames in flight that succeed are committed;
+    a process that dies (killed, out of memory) raises a SatsightError. ``scenario_json``:
+    the engine's scenario as ``satsight.run.dataset_folder.scenario_json`` gives it."""
+    root = Path(os.path.abspath(root))
+    variant = engine.renderer.variant
+    queue = iter(todo)
+    pending: dict = {}  # future -> frame index
+    failures: list[BaseException] = []  # a frame's error, raised once the others are in
+    context = multiprocessing.get_context("spawn")  # no fork of a process with JIT threads
+    with ProcessPoolExecutor(processes, mp_context=context, initializer=_start_process) as pool:
+
+        def submit_next() -> None:
+            index = next(queue, None)
+            if index is not None and not stop.is_set() and not failures:
+                pending[pool.submit(make_frame, scenario_json, str(root), index, variant)] = index
+
+        try:
+            with sigint_ignored():  # the processes start on the first submit
+                submit_next()
+            for _ in range(processes * (1 + _QUEUED_PER_PROCESS) - 1):
+                submit_next()
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in sorted(done, key=pending.__getitem__):
+                    index = pending.pop(future)
+                    try:
+                        record, stage = future.result()
+                    except BrokenProcessPool:
+                        raise SatsightError(
+                            "a render process ended (killed, or out of memory) while frame "
+                            f"{index} was in flight; the frames committed so far are kept: "
+                            "run again with --resume"
+                        ) from None
+                    except Exception as error:
+                        failures.append(error)
+                        continue
+                    for name, seconds in stage.items():
+                        times.setdefault(name, []).append(seconds)
+                    commit(record)
+                    submit_next()
+        except BaseException:
+            for future in pending:
+                future.cancel()
+            raise
+    if failures:
+        raise failures[0]
+
+
+def _start_process() -> None:
+    """A render process's set-up: its renderer on one thread (the processes fill the
+    cores), unless the user set ``SATSIGHT_RENDER_THREADS``."""
+    os.environ.setdefault("SATSIGHT_RENDER_THREADS", "1")
