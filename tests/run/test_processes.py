@@ -41,6 +41,8 @@ def test_processes_start_for_long_runs_of_small_frames_that_fit() -> None:
     assert local_processes(1024, 1024, 201, cores=1, memory_bytes=20 * GB, environ={}) == (1, None)
     few = PROCESS_MIN_FRAMES - 1
     assert local_processes(1024, 1024, few, cores=2, memory_bytes=20 * GB, environ={}) == (1, None)
+    gpu = local_processes(1024, 1024, 201, 2, 20 * GB, {}, variant="cuda_ad_rgb")
+    assert gpu == (1, None)
     side = int(PROCESS_MAX_PIXELS**0.5) + 1
     assert local_processes(side, side, 201, cores=2, memory_bytes=20 * GB, environ={})[0] == 1
     # Memory: this process's frame, then one kept-buffer frame per render process.
@@ -133,6 +135,6 @@ def test_a_failing_frame_raises_after_the_others_in_flight(tmp_path, monkeypatch
 def test_a_dead_process_is_named(tmp_path, monkeypatch) -> None:
     monkeypatch.setattr(processes, "make_frame", process_frames.dying_frame)
     records: list[dict] = []
-    with pytest.raises(SatsightError, match="a render process ended .* while frame"):
+    with pytest.raises(SatsightError, match=r"a render process ended .* while frame"):
         run_processes(ENGINE, {}, tmp_path, [3, *range(3)], records.append, StopFlag(), {}, 2)
     assert 3 not in {r["frame_index"] for r in records}

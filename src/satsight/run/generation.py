@@ -206,7 +206,8 @@ def _processes(engine: FrameEngine, requested: int | str, frames: int) -> int:
     choice for ``"auto"`` (its reason logged)."""
     if requested == "auto":
         camera = engine.camera
-        count, why = local_processes(camera.width_px, camera.height_px, frames)
+        variant = engine.renderer.variant
+        count, why = local_processes(camera.width_px, camera.height_px, frames, variant=variant)
         if why is not None:
             log.info("%s", why)
         return count

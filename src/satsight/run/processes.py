@@ -24,7 +24,7 @@ from pathlib import Path
 from satsight.errors import SatsightError
 from satsight.frame_memory import frame_memory_bytes, memory_limit_bytes
 from satsight.pipeline import FrameEngine
-from satsight.render.backend import machine_cores
+from satsight.render.backend import CPU_VARIANT, machine_cores
 from satsight.run.frame_tasks import make_frame
 from satsight.run.interrupt import StopFlag, sigint_ignored
 
@@ -65,21 +65,23 @@ def local_processes(
     cores: int | None = None,
     memory_bytes: float | None = None,
     environ: dict | None = None,
+    variant: str = CPU_VARIANT,
 ) -> tuple[int, str | None]:
     """How many render processes a local run of ``frames`` width x height px frames starts
     (1: none, this process renders), and why, when more than one (None otherwise).
 
     ``SATSIGHT_LOCAL_PROCESSES`` = N sets N (1 turns them off); by default one per core
     (``cores``, default the machine's), for frames of at most ``PROCESS_MAX_PIXELS`` and at
-    least ``PROCESS_MIN_FRAMES`` of them, as many as fit in ``memory_bytes`` (default:
-    ``memory_limit_bytes``) with this process's own frame beside them."""
+    least ``PROCESS_MIN_FRAMES`` of them rendered on the CPU (``variant``; on a GPU each
+    process would hold its own copy of the scene and buffers there), as many as fit in
+    ``memory_bytes`` (default: ``memory_limit_bytes``) with this process's own frame."""
     count = requested_processes(environ)
     if count is not None:
-        return count, (
-            f"{count} render processes ({PROCESSES_VARIABLE}={count})" if count > 1 else None
-        )
+        why = f"{count} render processes ({PROCESSES_VARIABLE}={count})"
+        return count, why if count > 1 else None
     cores = machine_cores() if cores is None else cores
-    if cores < 2 or width_px * height_px > PROCESS_MAX_PIXELS or frames < PROCESS_MIN_FRAMES:
+    small = width_px * height_px <= PROCESS_MAX_PIXELS
+    if cores < 2 or not small or frames < PROCESS_MIN_FRAMES or variant != CPU_VARIANT:
         return 1, None
     memory_bytes = memory_limit_bytes(environ) if memory_bytes is None else memory_bytes
     count = cores
