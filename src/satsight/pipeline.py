@@ -122,7 +122,7 @@ def expose_frame(
         irradiance = irradiance_w_m2.copy()
     mask = image.object_mask
     if exposure_s is None:
-        exposure_s, _ = sensor.still_exposure(image, irradiance)
+        exposure_s = sensor.exposure_time_s(irradiance, mask)
     # Each region as (its box, its mask in the box), or None: the same pixels in the same
     # order as the whole frame's, without a pass over the frame for each label (4096 x 4112:
     # 60 ms a frame).
@@ -341,9 +341,7 @@ class FrameEngine:
     ) -> tuple[ExposureMotion | None, np.ndarray | None]:
         """The motion of a frame over its exposure, decided on its still (``motion_blur``;
         ``satsight.render.motion``), or None when it cannot reach the threshold; and the
-        still's whole focal-plane irradiance when the auto exposure made it (None otherwise:
-        a small target's exposure reads only a window around it,
-        ``SensorChain.still_exposure``)."""
+        still's focal-plane irradiance when the auto exposure needed it (None otherwise)."""
         mode = self.scenario.render.motion_blur
         corners = self.mesh.box_keypoints_body_m[:8]
         if self._moving:  # flying objects in view move over the exposure too

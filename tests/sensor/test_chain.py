@@ -13,7 +13,7 @@ from qe_oracle import blackbody_qe, solar_photon_integrals, solar_qe
 from satsight.camera.pinhole import PinholeCamera
 from satsight.errors import SatsightError
 from satsight.lighting.solar_spectrum import band_irradiance_w_m2
-from satsight.render.buffers import RadianceImage, mask_box, within_box
+from satsight.render.buffers import RadianceImage, margin_pixels_xy, mask_box, within_box
 from satsight.sensor.chain import SensorChain, exposure_regions
 from satsight.sensor.detector import DetectorParameters, photons_per_pixel
 from satsight.sensor.exposure_rule import ExposureRule
@@ -21,11 +21,8 @@ from satsight.sensor.mtf import band_wavelengths_m
 from satsight.sensor.optics import Optics
 from satsight.sensor.star_field import StarsInView, star_photon_counts
 from satsight.sensor.star_stamps import star_photons_image
-from sensor_frames import BAND_NM
-from sensor_frames import radiance_image as _image
-from sensor_frames import sensor_chain as _chain
-from sensor_frames import with_ring as _with_ring
 
+BAND_NM = (450.0, 900.0)
 H_PLANCK_J_S = 6.62607015e-34
 C_M_S = 299_792_458.0
 #: The CCD231-84 curve's mean over the band for E-490 sunlight, from the data files.
@@ -36,6 +33,31 @@ SOLAR_QE = solar_qe(*BAND_NM)
 QE_RTOL = 1e-5
 #: A detector without fixed pattern or dark current: its mean electrons are eta x photons.
 CLEAN = {"prnu_fraction": 0.0, "dsnu_e_per_s": 0.0, "dark_current_e_per_s": 0.0}
+
+
+def _chain(
+    exposure: ExposureRule | None = None, size_px: tuple[int, int] = (96, 80), **detector
+) -> SensorChain:
+    camera = PinholeCamera.high_resolution().with_size(*size_px)
+    return SensorChain(
+        camera=camera,
+        optics=Optics.for_preset("high_resolution"),
+        detector=DetectorParameters(pixel_pitch_m=camera.pixel_pitch_m, **detector),
+        band_nm=BAND_NM,
+        exposure=exposure or ExposureRule(),
+        camera_seed=3,
+    )
+
+
+def _image(radiance_rgb: np.ndarray) -> RadianceImage:
+    h, w = radiance_rgb.shape[:2]
+    hit = radiance_rgb.any(axis=2)
+    return RadianceImage(
+        radiance_w_m2_sr=radiance_rgb.astype(np.float32),
+        depth_m=np.where(hit, np.float32(1000.0), np.float32(0.0)),
+        part_id=hit.astype(np.uint16),
+        normals_cam=np.zeros((h, w, 3), np.float32),
+    )
 
 
 def test_channel_weights_are_the_solar_thirds_of_the_band() -> None:
@@ -315,6 +337,18 @@ def test_light_outside_the_object_mask_is_kept() -> None:
     assert float(irradiance.sum()) == pytest.approx(expected, rel=1e-5)
 
 
+def _with_ring(radiance_rgb: np.ndarray, margin_px: int) -> RadianceImage:
+    """A frame whose radiance comes from the middle of a larger (H + 2m, W + 2m, 3) scene,
+    with the rest as its margin ring (the renderer's ``margin_pixels_xy`` order)."""
+    m = margin_px
+    h, w = radiance_rgb.shape[0] - 2 * m, radiance_rgb.shape[1] - 2 * m
+    x, y = margin_pixels_xy(w, h, m)
+    inner = _image(radiance_rgb[m : m + h, m : m + w])
+    return dataclasses.replace(
+        inner, margin_px=m, margin_radiance_w_m2_sr=radiance_rgb[y + m, x + m].astype(np.float32)
+    )
+
+
 def test_a_scene_filling_the_frame_reads_uniform_to_the_corners_with_the_margin() -> None:
     # Every frame pixel's kernel footprint lies on the uniform scene, so each reads the
     # camera equation's irradiance exactly, up to float32 rounding (~1e-7; bound 1e-5).
@@ -451,3 +485,30 @@ def test_an_image_without_its_radiance_keeps_its_mask() -> None:
     assert lean.radiance_w_m2_sr is None and lean.margin_radiance_w_m2_sr is None
     assert lean.object_mask is mask
     assert _image(np.ones((4, 5, 3), np.float32)).without_radiance().object_mask.all()
+
+
+def test_a_stills_exposure_is_the_rule_on_its_irradiance() -> None:
+    chain = _chain(ExposureRule(percentile=99.0, fill_fraction=0.7))
+    radiance = np.zeros((80, 96, 3), np.float32)
+    radiance[30:45, 40:60] = np.linspace(1.0, 30.0, 15 * 20 * 3).reshape(15, 20, 3)
+    image = _image(radiance)
+    irradiance = chain.focal_plane_irradiance_w_m2(image)
+    t, made = chain.still_exposure(image)
+    np.testing.assert_array_equal(made, irradiance)
+    assert t == chain.exposure_time_s(irradiance, image.object_mask)
+    assert chain.exposure.min_time_s < t < chain.exposure.max_time_s  # not at a clip
+    t_given, given = chain.still_exposure(image, irradiance)
+    assert t_given == t and given is irradiance  # a given irradiance is used, not made again
+    assert chain.longest_exposure_s == chain.exposure.max_time_s
+
+
+def test_a_fixed_exposure_carries_the_exposure_factor() -> None:
+    # A randomised frame scales the rule's time by its exposure factor, the fixed time
+    # too; the motion over the exposure is found for that time (FrameEngine.exposure_motion).
+    chain = dataclasses.replace(
+        _chain(ExposureRule(mode="fixed", time_s=0.25)), exposure_factor=2.0
+    )
+    image = _image(np.full((80, 96, 3), 5.0, np.float32))
+    assert chain.longest_exposure_s == 0.5
+    assert chain.still_exposure(image) == (0.5, None)
+    assert chain.exposure_time_s(np.zeros((80, 96)), image.object_mask) == 0.5

@@ -58,17 +58,11 @@ from satsight.lighting.solar_spectrum import (
     photon_weighted_wavelength_m,
     spectral_weights,
 )
-from satsight.render.buffers import RadianceImage, mask_box, within_box
+from satsight.render.buffers import RadianceImage, margin_pixels_xy, within_box
 from satsight.sensor.convolution import apply_optics
 from satsight.sensor.detector import DetectorParameters, mean_photon_energy_j
 from satsight.sensor.exposure import exposure_for_fill, mean_electrons_image, simulate_detector
 from satsight.sensor.exposure_rule import ExposureRule
-from satsight.sensor.focal_plane import (
-    BLUR_REACH_RADII,
-    detected_input,
-    ring_width_px,
-    window_around,
-)
 from satsight.sensor.mtf import band_wavelengths_m, check_render_sampling
 from satsight.sensor.optics import Optics, focal_plane_irradiance_w_m2
 from satsight.sensor.psf import frame_kernel
@@ -268,9 +262,7 @@ class SensorChain:
         frame: the kernel's radius. Render with ``Renderer.render(..., margin_px=this)``."""
         return self.psf.shape[0] // 2
 
-    def focal_plane_irradiance_w_m2(
-        self, image: RadianceImage, window: tuple[int, int, int, int] | None = None
-    ) -> np.ndarray:
+    def focal_plane_irradiance_w_m2(self, image: RadianceImage) -> np.ndarray:
         """(H, W) float32 photon-equivalent in-band irradiance on the detector from the
         rendered scene, after the camera equation and the blur (W m^-2, pixel-averaged).
 
@@ -292,14 +284,6 @@ class SensorChain:
         one) the frame is taken as dark beyond it: edge pixels of a scene that fills the
         frame then read low, by 10-12 % on the edge rows and 19-22 % in the corners with the
         default kernel at f/7 and f/10.
-
-        window: (row0, row1, col0, col1) on the grid of the frame and its ring
-        (``satsight.sensor.focal_plane``): only the light in that window is blurred, and the
-        frame pixels outside it read 0. The pixels farther than ``BLUR_REACH_RADII`` kernel
-        radii inside its edges (or as far as the grid's edge) read what the whole frame
-        gives, to the FFT's round-off (float32, ~1e-7 of the values) and but for the
-        clipping of dips shallower than 1e-6 of the brightest pixel, which is the window's
-        here and the frame's there.
         """
         radiance = image.radiance_w_m2_sr
         if radiance.ndim != 3 or radiance.shape[2] != 3:
@@ -307,47 +291,69 @@ class SensorChain:
                 f"radiance must be (H, W, 3) W m^-2 sr^-1, got shape {radiance.shape}"
             )
         h, w = radiance.shape[:2]
-        m = ring_width_px(image)
+        ring = image.margin_radiance_w_m2_sr
+        m = int(image.margin_px) if ring is not None else 0
         factor = float(focal_plane_irradiance_w_m2(1.0, self.optics))
         weights = (self.channel_detected_weights * np.float32(factor)).astype(np.float32)
-        focal, signal_box = detected_input(image, weights, window)
-        if signal_box is None:
+        # The frame and its ring on one (H + 2m, W + 2m) grid; np.zeros maps pages lazily,
+        # so the empty parts cost nothing.
+        focal = np.zeros((h + 2 * m, w + 2 * m), dtype=np.float32)
+        boxes = []
+        rows = np.flatnonzero(radiance.reshape(h, -1).max(axis=1, initial=0.0) > 0)
+        if rows.size:
+            band = radiance[rows[0] : rows[-1] + 1]
+            # Column maxima over the rows first (a contiguous reduction), then over channels.
+            cols = np.flatnonzero(band.max(axis=0).max(axis=1) > 0)
+            r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+            frame_box = (slice(r0 + m, r1 + m), slice(c0 + m, c1 + m))
+            np.matmul(
+                radiance[r0:r1, c0:c1].astype(np.float32, copy=False),
+                weights,
+                out=focal[frame_box],
+            )
+            boxes.append((r0 + m, r1 + m, c0 + m, c1 + m))
+        if m:
+            ring = np.asarray(ring, dtype=np.float32)
+            x, y = margin_pixels_xy(w, h, m)
+            if ring.shape != (x.size, 3):
+                raise SatsightError(
+                    f"the margin ring of a {w} x {h} frame, {m} px wide, holds {x.size} pixels "
+                    f"(n, 3); got radiance of shape {ring.shape}"
+                )
+            values = ring @ weights  # (n,), > 0 where any channel is (the weights are)
+            # The ring in row-major order of the padded frame: m full rows on top, two
+            # m-wide strips beside each frame row, m full rows below.
+            top, beside = m * (w + 2 * m), 2 * m * h
+            sides = values[top : top + beside].reshape(h, 2 * m)
+            focal[:m] = values[:top].reshape(m, w + 2 * m)
+            focal[m + h :] = values[top + beside :].reshape(m, w + 2 * m)
+            focal[m : m + h, :m] = sides[:, :m]
+            focal[m : m + h, m + w :] = sides[:, m:]
+            lit = values > 0
+            if lit.any():
+                ys, xs = y[lit] + m, x[lit] + m
+                boxes.append((int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1))
+        if not boxes:
             return np.zeros((h, w), dtype=np.float32)
-        if window is None:
-            return apply_optics(focal, self.psf, signal_box=signal_box, margin_px=m)
-        # The window blurred on its own (zero beyond it), its frame pixels put in place.
-        blurred = apply_optics(focal, self.psf, signal_box=signal_box)
-        g0, g1, k0, k1 = window
-        f0, f1, e0, e1 = max(g0 - m, 0), min(g1 - m, h), max(k0 - m, 0), min(k1 - m, w)
-        out = np.zeros((h, w), dtype=np.float32)
-        if f0 < f1 and e0 < e1:
-            out[f0:f1, e0:e1] = blurred[f0 + m - g0 : f1 + m - g0, e0 + m - k0 : e1 + m - k0]
-        return out
+        signal_box = (
+            min(b[0] for b in boxes),
+            max(b[1] for b in boxes),
+            min(b[2] for b in boxes),
+            max(b[3] for b in boxes),
+        )
+        return apply_optics(focal, self.psf, signal_box=signal_box, margin_px=m)
 
     def still_exposure(
         self, image: RadianceImage, irradiance_w_m2: np.ndarray | None = None
     ) -> tuple[float, np.ndarray | None]:
-        """The exposure rule's time for a rendered still (s), and the still's whole
-        focal-plane irradiance when it was made for it (else None).
-
-        The rule reads the target's pixels only, so the irradiance is made only within
-        ``BLUR_REACH_RADII`` kernel radii of the target mask's box
-        (``satsight.sensor.focal_plane.window_around``): a small target's exposure costs a
-        small window, not the frame (a frame filled by the Earth, ~10 ms at 1024 x 1024).
-        When that window would cover most of the grid, the whole frame's irradiance is made
-        (or ``irradiance_w_m2``, the whole frame's, is used) and returned, for the detector.
-        The same still always gives the same time, whichever of the two is given.
-        """
+        """The exposure rule's time for a rendered still (s), and the still's focal-plane
+        irradiance when the rule needed it (``irradiance_w_m2`` when given, else made here;
+        None for a fixed exposure)."""
         if self.exposure.mode == "fixed":
             return self._rule_time_s, None
-        mask = image.object_mask
-        window = window_around(image, mask_box(mask), BLUR_REACH_RADII * self.margin_px)
-        if window is not None:
-            near = self.focal_plane_irradiance_w_m2(image, window)
-            return self.exposure_time_s(near, mask), None
         if irradiance_w_m2 is None:
             irradiance_w_m2 = self.focal_plane_irradiance_w_m2(image)
-        return self.exposure_time_s(irradiance_w_m2, mask), irradiance_w_m2
+        return self.exposure_time_s(irradiance_w_m2, image.object_mask), irradiance_w_m2
 
     @property
     def longest_exposure_s(self) -> float:
