@@ -10,7 +10,8 @@ from types import SimpleNamespace
 import pytest
 
 import process_frames
-from dataset_files import file_hashes, generated_dataset, views_scenario
+from cli_runner import run_satsight
+from dataset_files import file_hashes, generated_dataset, views_scenario, write_scenario_yaml
 from satsight.config.scenario import parse_scenario
 from satsight.errors import SatsightError
 from satsight.frame_memory import frame_memory_bytes
@@ -138,3 +139,15 @@ def test_a_dead_process_is_named(tmp_path, monkeypatch) -> None:
     with pytest.raises(SatsightError, match=r"a render process ended .* while frame"):
         run_processes(ENGINE, {}, tmp_path, [3, *range(3)], records.append, StopFlag(), {}, 2)
     assert 3 not in {r["frame_index"] for r in records}
+
+
+def test_the_command_says_it_rendered_in_processes(tmp_path: Path, monkeypatch) -> None:
+    # ``python -m satsight``: spawned processes must not run the command again.
+    scenario = write_scenario_yaml(tmp_path, _scenario())
+    monkeypatch.setenv("SATSIGHT_LOCAL_PROCESSES", "2")
+    done = run_satsight("generate", str(scenario), "--out", "ds", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    said = done.stdout + done.stderr  # (the console writes to standard error)
+    assert "wrote 6 frames" in said and "llvm_ad_rgb in 2 render processes" in said
+    checked = run_satsight("validate", "ds", cwd=tmp_path)
+    assert checked.returncode == 0, checked.stdout + checked.stderr
