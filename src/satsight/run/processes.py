@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import signal
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -130,10 +131,9 @@ def run_processes(
                 pending[pool.submit(make_frame, scenario_json, str(root), index, variant)] = index
 
         try:
-            with sigint_ignored():  # the processes start on the first submit
-                submit_next()
-            for _ in range(processes * (1 + _QUEUED_PER_PROCESS) - 1):
-                submit_next()
+            with sigint_ignored():  # the processes start with the first submits
+                for _ in range(processes * (1 + _QUEUED_PER_PROCESS)):
+                    submit_next()
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for future in sorted(done, key=pending.__getitem__):
@@ -162,6 +162,8 @@ def run_processes(
 
 
 def _start_process() -> None:
-    """A render process's set-up: its renderer on one thread (the processes fill the
-    cores), unless the user set ``SATSIGHT_RENDER_THREADS``."""
+    """A render process's set-up: Ctrl-C ignored (also inherited from ``sigint_ignored``
+    where the process started within it), and its renderer on one thread (the processes
+    fill the cores), unless the user set ``SATSIGHT_RENDER_THREADS``."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("SATSIGHT_RENDER_THREADS", "1")
