@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 PROCESSES_VARIABLE = "SATSIGHT_LOCAL_PROCESSES"
 #: Largest frame (pixels) made by render processes. Measured at 1024 x 1024; at 4096 x 4112
 #: the sensor and the encoders release the interpreter's lock for most of their work, and
-#: one process keeps the cores busy with a third of the memory.
+#: one process keeps the cores busy with about half the memory of two.
 PROCESS_MAX_PIXELS = 1 << 21
 #: Fewest frames to make for render processes to repay their start-up (1.4 s more than
 #: one process at 1024 x 1024, 25 ms saved a frame: even at about 60 frames).
