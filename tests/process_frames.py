@@ -17,6 +17,7 @@ def reporting_frame(scenario_json: dict, root: str, index: int, variant: str):
     """A frame's record telling how its process was set up."""
     record = {
         "frame_index": index,
+        "scenario": scenario_json,
         "pid": os.getpid(),
         "sigint_ignored": signal.getsignal(signal.SIGINT) is signal.SIG_IGN,
         "render_threads": os.environ.get("SATSIGHT_RENDER_THREADS"),
@@ -40,3 +41,8 @@ def dying_frame(scenario_json: dict, root: str, index: int, variant: str):
     if index == FAILING_FRAME:
         os._exit(3)
     return reporting_frame(scenario_json, root, index, variant)
+
+
+def failing_start(scenario_json: dict) -> None:
+    """A render process's set-up that fails (as a process that cannot start)."""
+    raise RuntimeError("this process cannot start")

@@ -20,13 +20,18 @@ from satsight.errors import SatsightError
 
 _ENGINES: dict = {}
 _ENCODERS: list[ThreadPoolExecutor] = []
+_KEYED: list = []  # [the last scenario object asked for, its hash] (kept, so never reused)
 
 
 def process_engine(scenario_json: dict):
     """This process's FrameEngine for a scenario, built on its first frame and kept."""
     from satsight.pipeline import FrameEngine
 
-    key = scenario_sha256(scenario_json)
+    if _KEYED and _KEYED[0] is scenario_json:  # the same object as before: no hash again
+        key = _KEYED[1]
+    else:
+        key = scenario_sha256(scenario_json)
+        _KEYED[:] = [scenario_json, key]
     if key not in _ENGINES:
         _ENGINES.clear()  # one scenario at a time per process
         _ENGINES[key] = FrameEngine(parse_scenario(scenario_json, "scenario"))
@@ -51,7 +56,8 @@ def make_frame(
     engine = process_engine(scenario_json)
     if engine.renderer.variant != variant:
         raise SatsightError(
-            f"a worker renders with {engine.renderer.variant}, the dataset with {variant}; "
+            f"a worker or render process renders with {engine.renderer.variant}, the dataset "
+            f"with {variant}; "
             "set render.variant in the scenario so that every worker uses the same one"
         )
     t0 = time.perf_counter()

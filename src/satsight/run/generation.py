@@ -175,11 +175,11 @@ def _render_missing_frames(
 
         processes = 1
         if client is None:
-            processes = _processes(engine, render_processes, len(todo))
+            processes = _processes(engine, manifest["render_variant"], render_processes, len(todo))
         if processes > 1:
             summary.render_processes = processes
-            run_processes(engine, scenario_json(engine.scenario), out_dir, todo, commit, stop,
-                          summary.stage_seconds, processes)  # fmt: skip
+            run_processes(manifest["render_variant"], scenario_json(engine.scenario), out_dir,
+                          todo, commit, stop, summary.stage_seconds, processes)  # fmt: skip
         elif client is None:
             run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds, in_flight)
         else:
@@ -201,12 +201,13 @@ def _render_missing_frames(
         summary.complete = True
 
 
-def _processes(engine: FrameEngine, requested: int | str, frames: int) -> int:
-    """Local render processes for ``frames`` frames: ``requested``, or ``local_processes``'
-    choice for ``"auto"`` (its reason logged)."""
+def _processes(engine: FrameEngine, variant: str, requested: int | str, frames: int) -> int:
+    """Local render processes for ``frames`` frames (1 when there are none): ``requested``,
+    or ``local_processes``' choice for ``"auto"`` (its reason logged)."""
+    if frames == 0:
+        return 1
     if requested == "auto":
         camera = engine.camera
-        variant = engine.renderer.variant
         count, why = local_processes(camera.width_px, camera.height_px, frames, variant=variant)
         if why is not None:
             log.info("%s", why)

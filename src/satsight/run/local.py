@@ -54,9 +54,11 @@ def run_local(
     with (
         render_threads_beside_other_work(variant) if in_flight > 1 else nullcontext(),
         threadpool_limits(limits=BLAS_THREADS, user_api="blas"),
+        # Shut down in reverse: the writer's frames in flight finish (and commit) while the
+        # sensor and the encoders they wait for are still there.
+        ThreadPoolExecutor(ENCODER_THREADS, thread_name_prefix="satsight-encode") as encoders,
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-sensor") as sensor,
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="satsight-writer") as writer,
-        ThreadPoolExecutor(ENCODER_THREADS, thread_name_prefix="satsight-encode") as encoders,
     ):
         pending: deque = deque()
 

@@ -24,15 +24,15 @@ from pathlib import Path
 
 from satsight.errors import SatsightError
 from satsight.frame_memory import frame_memory_bytes, memory_limit_bytes
-from satsight.pipeline import FrameEngine
 from satsight.render.backend import CPU_VARIANT, machine_cores
 from satsight.run.frame_tasks import make_frame
 from satsight.run.interrupt import StopFlag, sigint_ignored
 
 log = logging.getLogger(__name__)
 
-#: Environment variable that sets the number of render processes of a local run: a whole
-#: number >= 1 (1: this process renders), or ``auto`` (the default: ``local_processes``).
+#: Environment variable that sets the number of render processes of a local run that
+#: lets satsight choose (``satsight generate``; ``render_processes="auto"`` in Python): a
+#: whole number >= 1 (1: this process renders), or ``auto`` (unset: ``local_processes``).
 PROCESSES_VARIABLE = "SATSIGHT_LOCAL_PROCESSES"
 #: Largest frame (pixels) made by render processes. Measured at 1024 x 1024; at 4096 x 4112
 #: the sensor and the encoders release the interpreter's lock for most of their work, and
@@ -51,7 +51,7 @@ def requested_processes(environ: dict | None = None) -> int | None:
     text = env.get(PROCESSES_VARIABLE, "").strip().lower()
     if text in ("", "auto"):
         return None
-    if not text.isdigit() or int(text) < 1:
+    if not text.isdecimal() or int(text) < 1:
         raise SatsightError(
             f"{PROCESSES_VARIABLE}={text!r}: expected a whole number >= 1 of render "
             "processes (1: this process renders) or 'auto'"
@@ -75,7 +75,9 @@ def local_processes(
     (``cores``, default the machine's), for frames of at most ``PROCESS_MAX_PIXELS`` and at
     least ``PROCESS_MIN_FRAMES`` of them rendered on the CPU (``variant``; on a GPU each
     process would hold its own copy of the scene and buffers there), as many as fit in
-    ``memory_bytes`` (default: ``memory_limit_bytes``) with this process's own frame."""
+    ``memory_bytes`` (default: ``memory_limit_bytes``) at a kept-buffer frame each, less a
+    one-process run's estimate for this process (conservative: this process renders no
+    frame, and the memory available is read after it has loaded its engine)."""
     count = requested_processes(environ)
     if count is not None:
         why = f"{count} render processes ({PROCESSES_VARIABLE}={count})"
@@ -100,7 +102,7 @@ def local_processes(
 
 
 def run_processes(
-    engine: FrameEngine,
+    variant: str,
     scenario_json: dict,
     root: Path,
     todo: list[int],
@@ -112,23 +114,30 @@ def run_processes(
     """Make the frames of ``todo`` in ``processes`` render processes and ``commit`` each
     record as it comes back (the lowest frame first among those done together).
 
-    Each process renders on one thread (the processes fill the cores) and ignores Ctrl-C:
-    a stop (``stop``) ends the run after the frames in flight, which are committed. A frame
-    that fails raises its error here, after the frames in flight that succeed are committed;
-    a process that dies (killed, out of memory) raises a SatsightError. ``scenario_json``:
-    the engine's scenario as ``satsight.run.dataset_folder.scenario_json`` gives it."""
+    ``scenario_json``: the scenario as ``satsight.run.dataset_folder.scenario_json`` gives
+    it, handed to each process once, when it starts; ``variant``: the dataset's render
+    variant, which every process must use. Each process renders on one thread (the
+    processes fill the cores) and ignores Ctrl-C: a stop (``stop``) ends the run after the
+    frames in flight, which are committed. A frame that fails raises its error here, after
+    the frames in flight that succeed are committed, and no frame is started after it; a
+    process that dies (killed, out of memory) or cannot start raises a SatsightError."""
     root = Path(os.path.abspath(root))
-    variant = engine.renderer.variant
     queue = iter(todo)
     pending: dict = {}  # future -> frame index
     failures: list[BaseException] = []  # a frame's error, raised once the others are in
+    committed = 0
     context = multiprocessing.get_context("spawn")  # no fork of a process with JIT threads
-    with ProcessPoolExecutor(processes, mp_context=context, initializer=_start_process) as pool:
+    with ProcessPoolExecutor(
+        processes, mp_context=context, initializer=_start_process, initargs=(scenario_json,)
+    ) as pool:
 
         def submit_next() -> None:
             index = next(queue, None)
             if index is not None and not stop.is_set() and not failures:
-                pending[pool.submit(make_frame, scenario_json, str(root), index, variant)] = index
+                # The function goes by name (``make_frame`` unless replaced), the scenario
+                # not at all: each process keeps its own (``_start_process``).
+                future = pool.submit(_frame_in_process, make_frame, str(root), index, variant)
+                pending[future] = index
 
         try:
             with sigint_ignored():  # the processes start with the first submits
@@ -136,23 +145,23 @@ def run_processes(
                     submit_next()
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                made = []
                 for future in sorted(done, key=pending.__getitem__):
                     index = pending.pop(future)
-                    try:
-                        record, stage = future.result()
-                    except BrokenProcessPool:
-                        raise SatsightError(
-                            "a render process ended (killed, or out of memory) while frame "
-                            f"{index} was in flight; the frames committed so far are kept: "
-                            "run again with --resume"
-                        ) from None
-                    except Exception as error:
+                    error = future.exception()
+                    if error is None:
+                        made.append(future.result())
+                    elif isinstance(error, BrokenProcessPool):
+                        failures.append(_broken(error, index, committed + len(made)))
+                    else:
                         failures.append(error)
-                        continue
+                for record, stage in made:  # a failure seen, they are still committed
                     for name, seconds in stage.items():
                         times.setdefault(name, []).append(seconds)
                     commit(record)
-                    submit_next()
+                    committed += 1
+                for _ in made:
+                    submit_next()  # (none once a frame has failed)
         except BaseException:
             for future in pending:
                 future.cancel()
@@ -161,9 +170,37 @@ def run_processes(
         raise failures[0]
 
 
-def _start_process() -> None:
-    """A render process's set-up: Ctrl-C ignored (also inherited from ``sigint_ignored``
-    where the process started within it), and its renderer on one thread (the processes
-    fill the cores), unless the user set ``SATSIGHT_RENDER_THREADS``."""
+def _broken(error: BaseException, index: int, made: int) -> SatsightError:
+    """The error for a pool whose process died (``error``) with frame ``index`` in flight,
+    ``made`` frames having come back before."""
+    if made == 0:
+        what = (
+            "the render processes ended before any frame came back (did they start? A "
+            'script that asks for render processes needs Python\'s `if __name__ == "__main__":` '
+            "guard)"
+        )
+    else:
+        what = "a render process ended (killed, or out of memory?)"
+    return SatsightError(
+        f"{what} while frame {index} was in flight ({error}); the frames committed so far "
+        "are kept: resume the run (--resume, or resume=True)"
+    )
+
+
+_SCENARIO: list[dict] = []  # in a render process: its scenario (``_start_process``)
+
+
+def _start_process(scenario_json: dict) -> None:
+    """A render process's set-up: its scenario kept for every frame, Ctrl-C ignored (also
+    inherited from ``sigint_ignored`` where the process started within it), and its
+    renderer on one thread (the processes fill the cores), unless the user set
+    ``SATSIGHT_RENDER_THREADS``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("SATSIGHT_RENDER_THREADS", "1")
+    _SCENARIO[:] = [scenario_json]
+
+
+def _frame_in_process(frame: Callable, root: str, index: int, variant: str):
+    """In a render process: ``frame`` (``make_frame``) of frame ``index`` with the
+    process's scenario."""
+    return frame(_SCENARIO[0], root, index, variant)

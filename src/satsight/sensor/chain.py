@@ -358,8 +358,11 @@ class SensorChain:
     @property
     def longest_exposure_s(self) -> float:
         """The longest time the exposure rule gives (s): the fixed time (with the exposure
-        factor), or the auto rule's ``max_time_s``."""
-        return self._rule_time_s if self.exposure.mode == "fixed" else self.exposure.max_time_s
+        factor); for the auto rule ``max_time_s``, or its time for a frame without lit
+        target pixels where that is longer."""
+        if self.exposure.mode == "fixed":
+            return self._rule_time_s
+        return max(self.exposure.max_time_s, self._rule_time_s)
 
     @property
     def _rule_time_s(self) -> float:
