@@ -169,13 +169,17 @@ def test_kill_9_at_a_random_moment_then_resume_gives_the_same_bytes(
 
 
 # One Dask worker process: the signal reaches it as it would reach any number of them.
-@pytest.mark.parametrize("workers", [None, "1"])
+# "processes": two local render processes (SATSIGHT_LOCAL_PROCESSES), resumed with them too.
+@pytest.mark.parametrize("workers", [None, "1", "processes"])
 def test_ctrl_c_stops_after_the_frame_in_flight_and_says_how_to_resume(
-    tmp_path: Path, scenario_file: Path, reference_hashes, workers: str | None
+    tmp_path: Path, scenario_file: Path, reference_hashes, workers: str | None, monkeypatch
 ) -> None:
     """Ctrl-C in a terminal reaches the whole job (the process group): Dask's worker
-    processes too, which ignore it, so the run still stops cleanly."""
-    if workers is not None:
+    processes and render processes too, which ignore it, so the run still stops cleanly."""
+    if workers == "processes":
+        monkeypatch.setenv("SATSIGHT_LOCAL_PROCESSES", "2")
+        workers = None
+    elif workers is not None:
         pytest.importorskip("dask.distributed")
     out = tmp_path / "dataset"
     process = _start(scenario_file, out, *(() if workers is None else ("--workers", workers)))
