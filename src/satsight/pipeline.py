@@ -194,8 +194,8 @@ class FrameEngine:
         outputs write it (its file holds half floats), else not at all (a 4096 x 4112
         frame's normals are 0.1 GB in float16, 0.2 GB in float32). keeps_buffers: the
         frame-size check counts the memory of a process that keeps Dr.Jit's buffers between
-        frames (the Python interface, a Dask worker); False for a local run, which hands
-        them back when it must (``satsight.frame_memory``)."""
+        frames (the Python interface, a Dask worker, a render process); False for a local
+        run, which hands them back when it must (``satsight.frame_memory``)."""
         camera = scenario.camera.build()
         # Before the mesh and the renderer.
         check_frame_memory(camera.width_px, camera.height_px, kept=keeps_buffers)
