@@ -13,7 +13,6 @@ kernels) and its own memory, so they start only for enough frames that fit in me
 
 from __future__ import annotations
 
-import logging
 import multiprocessing
 import os
 import signal
@@ -27,8 +26,6 @@ from satsight.frame_memory import frame_memory_bytes, memory_limit_bytes
 from satsight.render.backend import CPU_VARIANT, machine_cores
 from satsight.run.frame_tasks import make_frame
 from satsight.run.interrupt import StopFlag, sigint_ignored
-
-log = logging.getLogger(__name__)
 
 #: Environment variable that sets the number of render processes of a local run that
 #: lets satsight choose (``satsight generate``; ``render_processes="auto"`` in Python): a
