@@ -119,11 +119,9 @@ def generate_dataset(
             frame_px = (engine.camera.width_px, engine.camera.height_px)
             client = stack.enter_context(dask_client(workers, scheduler, out_dir, frame_px))
         complete = prepare_folder(out_dir, manifest, scenario, overwrite, resume)
-        if client is None and why_one is not None:
-            log.warning("%s", why_one)
         _render_missing_frames(engine, out_dir, manifest, shard or Shard(0, 1), client, summary,
                                stop, on_frame_done, complete, in_flight,
-                               render_processes)  # fmt: skip
+                               render_processes, why_one)  # fmt: skip
     summary.total_seconds = time.perf_counter() - started
     return summary
 
@@ -140,11 +138,13 @@ def _render_missing_frames(
     complete: bool = False,
     in_flight: int = PIPELINED_FRAMES,
     render_processes: int | str = 1,
+    why_one: str | None = None,
 ) -> None:
     """Commit every frame of ``shard`` not yet committed in ``out_dir`` (or whose files are
     missing or changed), then close the dataset (unless the run was stopped). complete:
     ``out_dir`` is closed already; it is left untouched when every file is intact.
-    in_flight: frames in flight when they are rendered in this process (``run_local``).
+    in_flight: frames in flight when they are rendered in this process (``run_local``), and
+    why_one: why only one is (said when this process makes the frames).
     render_processes: ``generate_dataset``'s."""
     frames = shard.frames(engine.frame_count)
     table = CommitTable(shard, engine.frame_count)
@@ -173,27 +173,21 @@ def _render_missing_frames(
             if on_frame_done is not None:
                 on_frame_done(table.count, len(frames))
 
-        processes = 1
-        if client is None:
-            processes = _processes(engine, manifest["render_variant"], render_processes, len(todo))
-        if processes > 1:
-            summary.render_processes = processes
-            run_processes(manifest["render_variant"], scenario_json(engine.scenario), out_dir,
-                          todo, commit, stop, summary.stage_seconds, processes)  # fmt: skip
-        elif client is None:
-            run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds, in_flight)
-        else:
+        variant = manifest["render_variant"]
+        if client is not None:
             from satsight.run.distributed import run_distributed
 
             run_distributed(
-                client,
-                scenario_json(engine.scenario),
-                out_dir,
-                todo,
-                commit,
-                stop,
-                manifest["render_variant"],
+                client, scenario_json(engine.scenario), out_dir, todo, commit, stop, variant
             )
+        elif (processes := _processes(engine, variant, render_processes, len(todo))) > 1:
+            summary.render_processes = processes
+            run_processes(variant, scenario_json(engine.scenario), out_dir, todo, commit, stop,
+                          summary.stage_seconds, processes)  # fmt: skip
+        else:
+            if why_one is not None:  # (said only where this process makes the frames)
+                log.warning("%s", why_one)
+            run_local(engine, out_dir, todo, commit, stop, summary.stage_seconds, in_flight)
     summary.interrupted = table.count < len(frames)
     if not summary.interrupted:
         remove_temporary_files(out_dir)  # left by workers killed mid-write
